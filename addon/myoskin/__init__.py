@@ -1,0 +1,37 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Myoskin: anatomy-based skinning (Yang & Zhang 2006) for Blender.
+
+A thin layer over the compiled core: blender_io converts Blender data to and from the core's arrays,
+operators/ call the core, panels/ draw. Only core_loader imports the compiled module `_core`; when it
+cannot (missing, or built for another Python), the add-on still registers and the panels say what to do.
+"""
+
+bl_info = {
+    "name": "Myoskin",
+    "author": "Myoskin contributors",
+    "version": (0, 1, 0),
+    "blender": (3, 4, 0),
+    "location": "View3D > Sidebar > Myoskin",
+    "description": "Extract muscles from a rigged character's skin and deform the skin with muscles and skeleton",
+    "category": "Animation",
+    "support": "COMMUNITY",
+}
+
+import bpy  # noqa: E402
+
+from . import core_loader, operators, panels, preferences  # noqa: E402,F401
+
+classes = (*preferences.classes, *operators.classes, *panels.classes)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    if not core_loader.available():
+        print(f"Myoskin: {core_loader.status().message}")
+
+
+def unregister():
+    for cls in reversed(classes):
+        if getattr(cls, "is_registered", False):
+            bpy.utils.unregister_class(cls)

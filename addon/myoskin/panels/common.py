@@ -1,0 +1,48 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Drawing helpers shared by the panels (UI only)."""
+import textwrap
+
+from .. import core_loader
+from ..blender_io import find_armature
+
+
+def draw_wrapped(layout, text, context=None, icon='NONE'):
+    """Labels for `text` wrapped to the region's width (the first line carries the icon)."""
+    width = getattr(getattr(context, "region", None), "width", 0) or 300
+    chars = max(20, int(width / 7))
+    col = layout.column(align=True)
+    for i, line in enumerate(textwrap.wrap(text, chars) or [""]):
+        col.label(text=line, icon=icon if i == 0 else 'NONE')
+    return col
+
+
+def draw_core_status(layout, context=None):
+    """The core's status: one line when it loaded, the full instructions when it did not."""
+    status = core_loader.status()
+    if status.available:
+        layout.label(text=f"Core {status.build_info.get('myoskin_version', '')} ready", icon='CHECKMARK')
+        return True
+    box = layout.box()
+    box.alert = True
+    draw_wrapped(box, status.message, context, icon='ERROR')
+    return False
+
+
+def draw_character_info(layout, obj):
+    """Cheap facts about the active object (no core call: panels redraw often)."""
+    if obj is None:
+        layout.label(text="No active object", icon='INFO')
+        return
+    arm = find_armature(obj)
+    col = layout.column(align=True)
+    if obj.type == 'MESH':
+        mesh = obj.data
+        col.label(text=f"{obj.name}: {len(mesh.vertices):,} vertices, {len(mesh.polygons):,} faces",
+                  icon='MESH_DATA')
+        col.label(text=f"{len(obj.vertex_groups)} vertex groups")
+    else:
+        col.label(text=f"{obj.name} ({obj.type.lower()})", icon='OBJECT_DATA')
+    if arm is not None:
+        col.label(text=f"Armature {arm.name}: {len(arm.data.bones)} bones", icon='ARMATURE_DATA')
+    else:
+        col.label(text="No armature", icon='ERROR')

@@ -1,0 +1,154 @@
+// `myoskin`: the command-line tool for batch pipelines (no Blender needed).
+//   myoskin info CHARACTER                       counts, topology, bounding box, bones
+//   myoskin generate arm -o DIR [--seed N] [--muscle-scale S]   the procedural test character
+//   myoskin extract CHARACTER -o muscles.json    muscle extraction
+//   myoskin deform CHARACTER --muscles M --pose P -o out.obj|.pc2
+// Every failure prints one line "myoskin: error: ..." and exits non-zero.
+#include <cstdio>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <set>
+#include <stdexcept>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "myoskin/errors.h"
+#include "myoskin/io.h"
+#include "myoskin/synthetic_character.h"
+
+using namespace myoskin;
+
+namespace {
+
+// ============================================================================
+// Argument parsing
+// ============================================================================
+
+struct Args {
+  std::vector<std::string> positional;
+  std::map<std::string, std::string> options;  // --name value
+  std::vector<std::string> flags;              // --name without value
+};
+
+// Options listed in `withValue` take the next argument; anything else starting with -- is a flag.
+Args parse(int argc, char** argv, int first, const std::vector<std::string>& withValue) {
+  Args args;
+  for (int i = first; i < argc; ++i) {
+    std::string a = argv[i];
+    if (a == "-o") a = "--output";
+    if (a.rfind("--", 0) == 0) {
+      bool takes = false;
+      for (const std::string& w : withValue) takes |= (w == a);
+      if (takes) {
+        if (i + 1 >= argc) throw InputError(a + " needs a value");
+        args.options[a] = argv[++i];
+      } else {
+        args.flags.push_back(a);
+      }
+    } else {
+      args.positional.push_back(a);
+    }
+  }
+  return args;
+}
+
+void usage(std::ostream& out) {
+  out << "usage: myoskin <command> [arguments]\n"
+         "  info CHARACTER [--skeleton SKEL.json] [--bones]   counts, topology, bounding box, bones\n"
+         "  generate arm -o DIR [--seed N] [--muscle-scale S]  write the procedural test arm\n"
+         "                                                      (arm.obj, arm.skeleton.json, arm.truth.json)\n"
+         "  extract CHARACTER -o muscles.json [--spacing M] [--min-confidence C] [--min-sections N]\n"
+         "          [--max-per-region N] [--no-surfaces]       extract muscles from the skin\n"
+         "  deform CHARACTER --muscles M.json --pose P.json -o out.obj|out.pc2\n"
+         "CHARACTER is a .glb/.gltf, or an .obj with a <name>.skeleton.json beside it.\n";
+}
+
+// ============================================================================
+// Commands
+// ============================================================================
+
+int cmdInfo(const Args& args) {
+  if (args.positional.size() != 1) throw InputError("info needs exactly one CHARACTER file");
+  const auto skel = args.options.count("--skeleton") ? args.options.at("--skeleton") : std::string();
+  LoadOptions load;
+  load.requireWeights = true;  // every command works on a rigged, skinned character
+  const Character c = loadCharacter(args.positional[0], load, skel);
+  const TopologyReport topo = analyzeTopology(c.mesh);
+  Vec3 lo, hi;
+  boundingBox(c.mesh.vertices, lo, hi);
+  std::printf("character: %s\n", c.name.c_str());
+  std::printf("vertices: %d (welded; %d as stored)\n", c.mesh.numVertices(), c.sourceVertexCount);
+  std::printf("triangles: %d\n", c.mesh.numTriangles());
+  std::printf("bones: %d\n", c.skeleton.numBones());
+  std::printf("skin weights: %s\n",
+              c.hasWeights() ? (std::to_string(c.weights.influences()) + " influences per vertex").c_str() : "none");
+  std::printf("topology: %d boundary edges, %d non-manifold edges, %d components%s\n", topo.boundaryEdges,
+              topo.nonManifoldEdges, topo.components, topo.closed() && topo.manifold() ? " (closed manifold)" : "");
+  std::printf("bounding box: min (%.4f, %.4f, %.4f) max (%.4f, %.4f, %.4f) m\n", lo.x(), lo.y(), lo.z(), hi.x(),
+              hi.y(), hi.z());
+  std::printf("volume: %.6f m^3\n", enclosedVolume(c.mesh.vertices, c.mesh.triangles));
+  const bool all = std::find(args.flags.begin(), args.flags.end(), "--bones") != args.flags.end();
+  std::printf("bone names:");
+  const int shown = all ? c.skeleton.numBones() : std::min(c.skeleton.numBones(), 12);
+  for (int i = 0; i < shown; ++i) std::printf(" %s", c.skeleton.bones[i].name.c_str());
+  if (shown < c.skeleton.numBones()) std::printf(" ... (--bones lists all)");
+  std::printf("\n");
+  return 0;
+}
+
+int cmdGenerate(const Args& args) {
+  if (args.positional.size() != 1 || args.positional[0] != "arm") throw InputError("generate supports: arm");
+  if (!args.options.count("--output")) throw InputError("generate needs -o DIR");
+  SyntheticArmOptions options;
+  if (args.options.count("--seed")) options.seed = static_cast<unsigned>(std::stoul(args.options.at("--seed")));
+  if (args.options.count("--muscle-scale")) options.muscleScale = std::stod(args.options.at("--muscle-scale"));
+  const std::filesystem::path dir = args.options.at("--output");
+  std::filesystem::create_directories(dir);
+  const SyntheticCharacter arm = makeSyntheticArm(options);
+  writeObj((dir / "arm.obj").string(), arm.character.mesh.vertices, arm.character.mesh.triangles);
+  writeSkeletonJson((dir / "arm.skeleton.json").string(), arm.character);
+  std::ofstream truth(dir / "arm.truth.json");
+  truth << trueMusclesToJson(arm.muscles) << "\n";
+  if (!truth) throw InputError("cannot write " + (dir / "arm.truth.json").string());
+  std::printf("wrote %s (%d vertices, %d bones, %zu true muscles)\n", (dir / "arm.obj").string().c_str(),
+              arm.character.mesh.numVertices(), arm.character.skeleton.numBones(), arm.muscles.size());
+  return 0;
+}
+
+int cmdNotYet(const std::string& command, const Args& args) {
+  if (args.positional.empty()) throw InputError(command + " needs a CHARACTER file");
+  loadCharacter(args.positional[0]);  // bad input is still reported as bad input
+  std::fprintf(stderr, "myoskin: error: '%s' is not implemented yet in this build\n", command.c_str());
+  return 3;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || !std::strcmp(argv[1], "-h") || !std::strcmp(argv[1], "--help")) {
+    usage(argc < 2 ? std::cerr : std::cout);
+    return argc < 2 ? 2 : 0;
+  }
+  const std::string command = argv[1];
+  try {
+    if (command == "info") return cmdInfo(parse(argc, argv, 2, {"--skeleton"}));
+    if (command == "generate") return cmdGenerate(parse(argc, argv, 2, {"--output", "--seed", "--muscle-scale"}));
+    if (command == "extract")
+      return cmdNotYet(command, parse(argc, argv, 2,
+                              {"--output", "--skeleton", "--spacing", "--min-confidence", "--min-sections", "--max-per-region"}));
+    if (command == "deform") return cmdNotYet(command, parse(argc, argv, 2, {"--output", "--muscles", "--pose"}));
+    std::fprintf(stderr, "myoskin: error: unknown command '%s' (try myoskin --help)\n", command.c_str());
+    return 2;
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "myoskin: error: %s\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "myoskin: error: internal: %s\n", e.what());
+    return 4;
+  }
+}

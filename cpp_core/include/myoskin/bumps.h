@@ -1,0 +1,61 @@
+// Stages 3-4 of extraction: bumps on a section polygon (constrained Delaunay triangulation, triangle
+// classification, the paper's semicircle rule, a significance test) and the weighted ellipse per bump.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "myoskin/types.h"
+
+namespace myoskin {
+
+enum class TriangleKind { Junction = 0, Sleeve = 1, Terminal = 2 };  // number of boundary edges
+
+// The inside triangles of a section polygon's constrained Delaunay triangulation.
+struct SectionTriangulation {
+  Triangles triangles;             // #T by 3 indices into the polygon, counter-clockwise
+  std::vector<TriangleKind> kinds;  // #T
+};
+
+// Throws InputError for fewer than 3 points, non-finite points or a self-intersecting polygon.
+SectionTriangulation triangulateSection(const Points2& polygon);
+
+struct BumpOptions {
+  double minProtrusion = 0.002;      // metres: a bump must stand this far out of its smooth base
+  double minRelativeProtrusion = 0.04;  // ... and this fraction of the section's mean radius
+  double minWidthFraction = 0.04;    // bump arc length / section perimeter, at least
+  double maxWidthFraction = 0.5;     // and at most
+  double semicircleTolerance = 0.01;  // a vertex counts as inside the semicircle within this share of its radius
+  bool absorbJunctions = true;  // a junction two of whose branches merged up to it joins them and merging goes
+                                // on (the chordal-axis pruning the paper cites); false = stop at every junction
+                                // (the paper's text literally: densely sampled sections then give tiny regions)
+  int baseHarmonics = 4;        // Fourier harmonics of the smooth base shape (radius vs angle)
+};
+
+// A bump: a run of consecutive polygon vertices (the skin arc over a muscle belly).
+struct Bump {
+  int first = 0, last = 0;  // polygon indices of the arc ends (the diameter's endpoints); the arc runs in
+                            // increasing index order (counter-clockwise for a counter-clockwise polygon) from
+                            // first to last, wrapping around the end of the polygon
+  int terminalTriangle = -1;  // where merging started
+  int apex = 0;               // polygon index of the point that stands out most
+  double protrusion = 0.0;    // metres: the apex's height above the smooth base shape, counted from the
+                              // higher of the arc's lowest points on either side of it (its prominence)
+  double significance = 0.0;  // protrusion relative to the threshold (>= 1 means kept)
+};
+
+// Bumps found by merging from every terminal triangle with the semicircle rule, kept when significant.
+std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options = {},
+                            const SectionTriangulation* triangulation = nullptr);
+
+// A section ellipse in plane coordinates: centre, angle of axis a from the x axis, semi-axes a >= b.
+struct Ellipse2 {
+  Vec2 center = Vec2::Zero();
+  double angle = 0.0;
+  double a = 0.0, b = 0.0;
+};
+
+// Weighted ellipse fit to a bump's arc (weights highest at the terminal triangle, falling away from it);
+// the ellipse lies beneath the skin (inside the polygon, touching the arc from inside).
+Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionTriangulation& triangulation);
+
+}  // namespace myoskin

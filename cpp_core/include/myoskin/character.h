@@ -1,0 +1,27 @@
+// A rigged character: skin mesh, skeleton, skin weights. What the loaders return.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "myoskin/mesh.h"
+#include "myoskin/skeleton.h"
+#include "myoskin/skin_weights.h"
+
+namespace myoskin {
+
+struct Character {
+  std::string name;
+  Mesh mesh;  // welded skin, rest pose, scene space (metres)
+  Skeleton skeleton;
+  SkinWeights weights;  // per welded vertex; empty (0 rows) when the file has none
+  // For each vertex as stored in the file, its index in `mesh` (identity when nothing was welded).
+  std::vector<int> sourceToWelded;
+  int sourceVertexCount = 0;
+
+  bool hasWeights() const { return weights.numVertices() > 0; }
+};
+
+// Checks mesh (finite, in range), skeleton (names, parents, lengths) and weights (shape, range).
+void validateCharacter(const Character& character);
+
+}  // namespace myoskin

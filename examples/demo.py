@@ -1,0 +1,237 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Myoskin's main job: the default character in Blender, its muscles, and renders at rest and posed.
+
+    BLENDER_USER_SCRIPTS=build/blender_scripts blender -b --factory-startup --python-exit-code 1 \
+        --addons myoskin --python examples/demo.py -- --output DIR
+
+Writes to DIR:
+    myoskin_demo.blend   the rig, the skin (vertex groups + linear Armature modifier) and the muscles;
+                         frame 1 = rest, frame 2 = elbow bent ~90 degrees
+    muscles.json         the muscles (format myoskin.muscles, version 1)
+    truth.json           the generator's ground-truth muscles (centre lines and radii)
+    render_rest.png      Cycles render, muscles (red) under a translucent skin, rest pose
+    render_posed.png     the same with the elbow bent
+"""
+import argparse
+import json
+import os
+import sys
+import time
+
+import bpy
+import numpy as np
+from mathutils import Matrix, Vector
+
+FRAME_REST, FRAME_POSED = 1, 2
+
+
+def parse_args():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    p = argparse.ArgumentParser(prog="demo.py", description="Myoskin demo (run inside Blender)")
+    p.add_argument("--output", "-o", required=True, help="output folder (created if missing)")
+    p.add_argument("--seed", type=int, default=1, help="synthetic arm seed")
+    p.add_argument("--muscle-scale", type=float, default=1.0)
+    p.add_argument("--elbow", type=float, default=90.0, help="elbow flexion in degrees for the posed frame")
+    p.add_argument("--samples", type=int, default=16)
+    p.add_argument("--resolution", type=int, nargs=2, default=(480, 270), metavar=("X", "Y"))
+    p.add_argument("--no-render", action="store_true", help="skip the PNG renders")
+    return p.parse_args(argv)
+
+
+def addon():
+    """The add-on's modules, or a clear exit when Blender was started without it."""
+    try:
+        from myoskin import blender_io, core_loader, preferences, truth
+    except ImportError:
+        sys.exit("demo.py: the Myoskin add-on is not importable: run Blender with "
+                 "BLENDER_USER_SCRIPTS=<build>/blender_scripts and --addons myoskin (./myoskin.sh demo does)")
+    if not core_loader.available():
+        sys.exit(f"demo.py: {core_loader.status().message}")
+    return blender_io, core_loader, preferences, truth
+
+
+def log(message, start=[time.perf_counter()]):  # noqa: B006 (process start time)
+    print(f"[demo {time.perf_counter() - start[0]:5.1f} s] {message}", flush=True)
+
+
+# ------------------------------------------------------------------------------------------------
+# Scene
+# ------------------------------------------------------------------------------------------------
+
+def empty_scene():
+    for obj in list(bpy.data.objects):
+        bpy.data.objects.remove(obj)
+    for coll in (bpy.data.meshes, bpy.data.materials, bpy.data.cameras, bpy.data.lights):
+        for block in list(coll):
+            if block.users == 0:
+                coll.remove(block)
+
+
+def skin_material():
+    """Translucent skin: more opaque where seen edge-on (facing), so the silhouette reads."""
+    mat = bpy.data.materials.new("Myoskin Skin")
+    mat.use_nodes = True
+    mat.diffuse_color = (0.85, 0.62, 0.5, 0.35)
+    mat.blend_method = 'BLEND'  # Eevee/viewport; Cycles uses the node tree
+    mat.shadow_method = 'NONE'
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    nodes.clear()
+    out = nodes.new("ShaderNodeOutputMaterial")
+    bsdf = nodes.new("ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Base Color"].default_value = (0.85, 0.62, 0.5, 1.0)
+    bsdf.inputs["Roughness"].default_value = 0.5
+    transparent = nodes.new("ShaderNodeBsdfTransparent")
+    weight = nodes.new("ShaderNodeLayerWeight")
+    weight.inputs["Blend"].default_value = 0.35
+    ramp = nodes.new("ShaderNodeMapRange")
+    ramp.inputs["To Min"].default_value = 0.12
+    ramp.inputs["To Max"].default_value = 0.9
+    mix = nodes.new("ShaderNodeMixShader")
+    links.new(weight.outputs["Facing"], ramp.inputs["Value"])
+    links.new(ramp.outputs["Result"], mix.inputs["Fac"])
+    links.new(transparent.outputs["BSDF"], mix.inputs[1])
+    links.new(bsdf.outputs["BSDF"], mix.inputs[2])
+    links.new(mix.outputs["Shader"], out.inputs["Surface"])
+    return mat
+
+
+def muscle_material():
+    mat = bpy.data.materials.new("Myoskin Muscle")
+    mat.use_nodes = True
+    mat.diffuse_color = (0.75, 0.06, 0.05, 1.0)
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0.75, 0.06, 0.05, 1.0)
+    bsdf.inputs["Roughness"].default_value = 0.45
+    return mat
+
+
+def look_at(obj, target):
+    direction = Vector(target) - obj.location
+    obj.rotation_euler = direction.to_track_quat('-Z', 'Y').to_euler()
+
+
+def frame_camera(points, resolution, direction=(0.25, -1.0, 0.45), margin=1.12):
+    """An orthographic camera looking along -direction at all `points` (world, #N by 3), fitted to them."""
+    cam_data = bpy.data.cameras.new("Camera")
+    cam_data.type = 'ORTHO'
+    cam = bpy.data.objects.new("Camera", cam_data)
+    bpy.context.scene.collection.objects.link(cam)
+    d = Vector(direction).normalized()
+    centre = Vector(points.mean(axis=0))
+    cam.location = centre + d * 3.0
+    look_at(cam, centre)
+    rot = np.array(cam.rotation_euler.to_matrix())
+    local = (points - np.array(cam.location)) @ rot  # camera space (x right, y up)
+    lo, hi = local.min(axis=0), local.max(axis=0)
+    mid = (lo + hi) / 2.0
+    cam.location = Vector(np.array(cam.location) + rot[:, 0] * mid[0] + rot[:, 1] * mid[1])
+    aspect = resolution[0] / resolution[1]
+    cam_data.ortho_scale = float(max(hi[0] - lo[0], (hi[1] - lo[1]) * aspect) * margin)
+    cam_data.clip_end = 10.0
+    bpy.context.scene.camera = cam
+    return cam
+
+
+def add_sun():
+    sun_data = bpy.data.lights.new("Sun", 'SUN')
+    sun_data.energy = 3.5
+    sun_data.angle = np.radians(8.0)
+    sun = bpy.data.objects.new("Sun", sun_data)
+    sun.rotation_euler = (np.radians(40.0), np.radians(-15.0), np.radians(-30.0))
+    bpy.context.scene.collection.objects.link(sun)
+    return sun
+
+
+def setup_render(scene, samples, resolution):
+    scene.render.engine = 'CYCLES'
+    scene.cycles.device = 'CPU'
+    scene.cycles.samples = samples
+    scene.cycles.use_denoising = False
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.transparent_max_bounces = 16
+    scene.cycles.max_bounces = 4
+    scene.render.resolution_x, scene.render.resolution_y = resolution
+    scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = 'PNG'
+    scene.render.film_transparent = False
+    scene.view_settings.view_transform = 'Standard'
+    world = bpy.data.worlds.new("Myoskin World") if scene.world is None else scene.world
+    scene.world = world
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.42, 0.45, 0.5, 1.0)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.6
+
+
+def pose_elbow(arm_obj, degrees):
+    """Flex the elbow: rotate the forearm about its local X (the bone's hinge axis in this rig),
+    keyed at FRAME_POSED, with the rest pose keyed at FRAME_REST."""
+    pb = arm_obj.pose.bones["forearm"]
+    pb.rotation_mode = 'XYZ'
+    pb.rotation_euler = (0.0, 0.0, 0.0)
+    pb.keyframe_insert("rotation_euler", frame=FRAME_REST)
+    pb.rotation_euler = (np.radians(degrees), 0.0, 0.0)
+    pb.keyframe_insert("rotation_euler", frame=FRAME_POSED)
+
+
+def render(scene, frame, path):
+    scene.frame_set(frame)
+    scene.render.filepath = path
+    bpy.ops.render.render(write_still=True)
+
+
+def main():
+    args = parse_args()
+    blender_io, core_loader, preferences, truth_mod = addon()
+    core = core_loader.core()
+    out = os.path.abspath(args.output)
+    os.makedirs(out, exist_ok=True)
+    prefs = preferences.get_preferences()
+
+    log("generating the default character (procedural muscular arm)")
+    character, truth = core.make_synthetic_arm(seed=args.seed, muscle_scale=args.muscle_scale)
+    log(f"{character!r}, {len(truth)} true muscles")
+
+    empty_scene()
+    scene = bpy.context.scene
+    arm_obj, mesh_obj = blender_io.character_to_blender(character, "SyntheticArm")
+    mesh_obj.data.materials.append(skin_material())
+    tubes = blender_io.truth_to_curves(truth, material=muscle_material(), armature_obj=arm_obj)
+    arm_obj.hide_render = True
+    log(f"built {arm_obj.name} ({len(arm_obj.data.bones)} bones), {mesh_obj.name} "
+        f"({len(mesh_obj.data.vertices)} vertices), {len(tubes)} muscle tubes")
+
+    # The muscles. For now these are the generator's ground truth converted to Muscle objects; when
+    # extraction lands this becomes the muscles extracted from the skin (core.extract_muscles).
+    muscles = truth_mod.muscles_from_truth(truth, character, joints=prefs.joints_per_muscle,
+                                           bulge=prefs.bulge_factor)
+    core.write_muscles(os.path.join(out, "muscles.json"), muscles)
+    with open(os.path.join(out, "truth.json"), "w", encoding="utf-8") as f:
+        json.dump(truth_mod.truth_to_json_dict(truth), f, indent=1)
+    log(f"wrote muscles.json ({len(muscles)} muscles) and truth.json")
+
+    pose_elbow(arm_obj, args.elbow)
+    scene.frame_start, scene.frame_end = FRAME_REST, FRAME_POSED
+    points = []
+    for frame in (FRAME_REST, FRAME_POSED):
+        scene.frame_set(frame)
+        world = np.array(mesh_obj.matrix_world)
+        points.append(blender_io.evaluated_vertices(mesh_obj) @ world[:3, :3].T + world[:3, 3])
+    posed_err = np.abs(points[1] - points[0]).max()
+    log(f"posed the elbow {args.elbow:.0f} degrees (skin moved up to {posed_err:.3f} m)")
+
+    setup_render(scene, args.samples, tuple(args.resolution))
+    frame_camera(np.vstack(points), args.resolution)
+    add_sun()
+    scene.frame_set(FRAME_REST)
+    bpy.ops.wm.save_as_mainfile(filepath=os.path.join(out, "myoskin_demo.blend"))
+    log("saved myoskin_demo.blend")
+
+    if not args.no_render:
+        for frame, name in ((FRAME_REST, "render_rest.png"), (FRAME_POSED, "render_posed.png")):
+            render(scene, frame, os.path.join(out, name))
+            log(f"rendered {name}")
+    log(f"done: outputs in {out}")
+
+
+if __name__ == "__main__":
+    main()

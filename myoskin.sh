@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# Myoskin's one entry point: installs missing Debian packages, builds, and runs the demo or the tests.
+#   ./myoskin.sh demo [OUTPUT_DIR]   setup + build + the main job (default character in Blender) -> out/demo
+#   ./myoskin.sh test                setup + build + every test tier (C++, Python, Blender) through ctest
+#   ./myoskin.sh build               setup + build only
+#   ./myoskin.sh setup               install missing Debian packages only
+# Environment: MYOSKIN_BUILD_DIR (default ./build), MYOSKIN_JOBS (default: number of cores).
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+BUILD="${MYOSKIN_BUILD_DIR:-$ROOT/build}"
+JOBS="${MYOSKIN_JOBS:-$(nproc)}"
+PACKAGES=(g++ cmake make libcgal-dev libopenmesh-dev libglm-dev libeigen3-dev pybind11-dev python3-dev
+          libtinygltf-dev nlohmann-json3-dev libtbb-dev libgtest-dev libbenchmark-dev python3-numpy
+          python3-pytest blender)
+
+log() { printf '\033[1mmyoskin:\033[0m %s\n' "$*"; }
+
+# Install whatever Debian packages are missing (as root, or through sudo).
+setup() {
+  local missing=()
+  for p in "${PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  if [ ${#missing[@]} -eq 0 ]; then log "all Debian packages present"; return; fi
+  log "installing missing Debian packages: ${missing[*]}"
+  local sudo=""
+  if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null || { echo "myoskin: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
+    sudo="sudo"
+  fi
+  $sudo apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
+}
+
+# Configure once (Release, Blender's Python), then build incrementally.
+build() {
+  if [ ! -f "$BUILD/CMakeCache.txt" ]; then
+    cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3
+  fi
+  cmake --build "$BUILD" -j "$JOBS"
+}
+
+run_tests() {
+  ctest --test-dir "$BUILD" --output-on-failure -j "$JOBS" --timeout 1500
+}
+
+run_demo() {
+  local out="${1:-$ROOT/out/demo}"
+  mkdir -p "$out"
+  out="$(cd "$out" && pwd)"
+  "$BUILD/bin/myoskin" generate arm -o "$out/character"
+  BLENDER_USER_SCRIPTS="$BUILD/blender_scripts" blender -b --factory-startup --python-exit-code 1 \
+    --addons myoskin --python "$ROOT/examples/demo.py" -- --output "$out"
+  log "demo outputs in $out:"
+  ls -1 "$out"
+}
+
+case "${1:-}" in
+  setup) setup ;;
+  build) setup; build ;;
+  test) setup; build; run_tests ;;
+  demo) setup; build; run_demo "${2:-}" ;;
+  *) sed -n '2,8p' "$0"; exit 2 ;;
+esac

@@ -1,0 +1,88 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""A tiny test runner for scripts run inside Blender (blender -b ... --python tests/blender/test_X.py).
+
+Usage at the end of a test script:
+    import blender_test_runner as runner
+    runner.run()          # collects test_* functions of the calling module, in definition order
+
+Prints "PASS name", "FAIL name" (with the traceback) or "SKIP name: reason" per test, then a final line
+exactly "N passed, N failed" (", N skipped" appended when some were skipped), and exits with status 1
+when any test failed (and 0 otherwise, so Blender stops without running its UI).
+
+Skipping: raise runner.Skip("reason"), or use runner.shared_file("characters/x/x.glb"), which returns
+the path under MYOSKIN_SHARED_DIR (default: <source>/../shared) or skips naming the missing file.
+"""
+import inspect
+import os
+import sys
+import time
+import traceback
+
+SOURCE_DIR = os.environ.get("MYOSKIN_SOURCE_DIR") or os.path.abspath(
+    os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
+SHARED_DIR = os.environ.get("MYOSKIN_SHARED_DIR") or os.path.abspath(os.path.join(SOURCE_DIR, "..", "shared"))
+
+
+class Skip(Exception):
+    """Raise to skip the current test; the message is the reason."""
+
+
+def skip(reason):
+    raise Skip(reason)
+
+
+def shared_file(relative):
+    """Absolute path of a file in the shared folder, or Skip with a message naming what is missing."""
+    path = os.path.join(SHARED_DIR, relative)
+    if not os.path.exists(path):
+        raise Skip(f"needs {path} (the ../shared folder beside the repository; set MYOSKIN_SHARED_DIR)")
+    return path
+
+
+def collect(namespace):
+    """test_* functions of a module namespace, in definition (line) order."""
+    tests = [v for k, v in namespace.items() if k.startswith("test_") and inspect.isfunction(v)]
+    return sorted(tests, key=lambda f: f.__code__.co_firstlineno)
+
+
+def enable_addon(name="myoskin"):
+    """Enable the add-on as a user would (listed in the preferences), not only loaded by --addons."""
+    import addon_utils
+    import bpy
+    if name not in bpy.context.preferences.addons:
+        addon_utils.enable(name, default_set=True)
+
+
+def run(namespace=None, exit=True):
+    """Run the test_* functions of `namespace` (default: the caller's globals). Returns (passed, failed,
+    skipped); with exit=True ends the process with status 1 on any failure."""
+    if namespace is None:
+        namespace = inspect.currentframe().f_back.f_globals
+    enable_addon()
+    only = os.environ.get("MYOSKIN_TEST_FILTER", "")
+    passed = failed = skipped = 0
+    for test in collect(namespace):
+        name = test.__name__
+        if only and only not in name:
+            continue
+        start = time.perf_counter()
+        try:
+            test()
+        except Skip as e:
+            skipped += 1
+            print(f"SKIP {name}: {e}", flush=True)
+        except Exception:  # noqa: BLE001
+            failed += 1
+            print(f"FAIL {name}", flush=True)
+            traceback.print_exc()
+            sys.stderr.flush()
+        else:
+            passed += 1
+            print(f"PASS {name} ({time.perf_counter() - start:.2f} s)", flush=True)
+    summary = f"{passed} passed, {failed} failed"
+    if skipped:
+        summary += f", {skipped} skipped"
+    print(summary, flush=True)
+    if exit:
+        sys.exit(1 if failed else 0)
+    return passed, failed, skipped

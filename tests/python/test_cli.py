@@ -1,0 +1,94 @@
+"""The `myoskin` CLI: info on the shared characters, generate, and one-line errors on bad input."""
+import json
+import re
+
+import pytest
+
+from conftest import LOWPOLY, MUSCULAR, run_cli, shared
+
+
+def _counts(out):
+    vertices = int(re.search(r"^vertices: (\d+)", out, re.M).group(1))
+    bones = int(re.search(r"^bones: (\d+)", out, re.M).group(1))
+    return vertices, bones
+
+
+def test_info_muscular_male_prints_readme_counts():
+    r = run_cli("info", shared(MUSCULAR))
+    assert r.returncode == 0, r.stderr
+    assert _counts(r.stdout) == (13380, 163)
+    assert "triangles: 26756" in r.stdout
+    assert "(closed manifold)" in r.stdout
+    assert "bounding box: min (-0.60" in r.stdout
+
+
+def test_info_lowpoly_prints_welded_counts():
+    r = run_cli("info", shared(LOWPOLY))
+    assert r.returncode == 0, r.stderr
+    assert _counts(r.stdout) == (904, 56)
+    assert "1226 as stored" in r.stdout
+    assert "(closed manifold)" in r.stdout
+
+
+def test_generate_arm_writes_a_loadable_character(tmp_path):
+    r = run_cli("generate", "arm", "-o", str(tmp_path), "--seed", "3")
+    assert r.returncode == 0, r.stderr
+    truth = json.load(open(tmp_path / "arm.truth.json"))
+    assert len(truth["muscles"] if isinstance(truth, dict) else truth) >= 5
+    info = run_cli("info", str(tmp_path / "arm.obj"))
+    assert info.returncode == 0, info.stderr
+    assert "(closed manifold)" in info.stdout
+
+
+def _write_obj(path, vertices, faces):
+    with open(path, "w") as f:
+        for v in vertices:
+            f.write("v %s %s %s\n" % v)
+        for t in faces:
+            f.write("f %d %d %d\n" % t)
+
+
+TETRA_V = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+TETRA_F = [(1, 3, 2), (1, 2, 4), (1, 4, 3), (2, 3, 4)]
+SKELETON = {"bones": [{"name": "root", "parent": None, "head": [0, 0, 0], "tail": [0, 0.5, 0]}],
+            "weights": {"root": [[0, 1.0], [1, 1.0], [2, 1.0], [3, 1.0]]}}
+
+
+def _bad_inputs(tmp_path):
+    """(name, path) of each kind of bad input the CLI must reject."""
+    cases = [("missing file", str(tmp_path / "missing.glb"))]
+    wrong = tmp_path / "wrong.glb"
+    wrong.write_text("not a glb at all")
+    cases.append(("wrong format", str(wrong)))
+    unknown = tmp_path / "model.fbx"
+    unknown.write_text("x")
+    cases.append(("unknown extension", str(unknown)))
+    _write_obj(tmp_path / "nan.obj", [(0, 0, 0), ("nan", 0, 0), (0, 1, 0), (0, 0, 1)], TETRA_F)
+    json.dump(SKELETON, open(tmp_path / "nan.skeleton.json", "w"))
+    cases.append(("NaN positions", str(tmp_path / "nan.obj")))
+    _write_obj(tmp_path / "noskin.obj", TETRA_V, TETRA_F)
+    json.dump({"bones": SKELETON["bones"]}, open(tmp_path / "noskin.skeleton.json", "w"))
+    cases.append(("mesh without skin", str(tmp_path / "noskin.obj")))
+    return cases
+
+
+@pytest.mark.parametrize("command", ["info", "extract", "deform"])
+def test_bad_input_gives_one_line_error_and_nonzero_exit(tmp_path, command):
+    for name, path in _bad_inputs(tmp_path):
+        r = run_cli(command, path, "-o", str(tmp_path / "out.json"))
+        assert r.returncode not in (0, -6, -11), f"{name}: exit {r.returncode}"
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("myoskin: error: "), f"{name}: {r.stderr!r}"
+
+
+def test_unskinned_glb_is_rejected():
+    path = shared("characters/bodyparts3d_right_leg/bodyparts3d_right_leg.glb")
+    r = run_cli("info", path)
+    assert r.returncode != 0 and r.stderr.startswith("myoskin: error: ")
+
+
+def test_usage_errors():
+    assert run_cli().returncode == 2
+    r = run_cli("frobnicate")
+    assert r.returncode == 2 and "unknown command" in r.stderr
+    assert run_cli("--help").returncode == 0
