@@ -2,9 +2,12 @@
 # Myoskin's one entry point: installs missing Debian packages, builds, and runs the demo or the tests.
 #   ./myoskin.sh demo [OUTPUT_DIR]   setup + build + the main job (default character in Blender) -> out/demo
 #   ./myoskin.sh test                setup + build + every test tier (C++, Python, Blender) through ctest
+#   ./myoskin.sh render-muscles [OUTPUT_DIR]  extract + render the MakeHuman characters' muscles -> out/muscles
+#   ./myoskin.sh bench               setup + build + the speed benchmarks (printed, never asserted)
 #   ./myoskin.sh build               setup + build only
 #   ./myoskin.sh setup               install missing Debian packages only
-# Environment: MYOSKIN_BUILD_DIR (default ./build), MYOSKIN_JOBS (default: number of cores).
+# Environment: MYOSKIN_BUILD_DIR (default ./build), MYOSKIN_JOBS (default: number of cores),
+#   MYOSKIN_SHARED_DIR (default ../shared).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 BUILD="${MYOSKIN_BUILD_DIR:-$ROOT/build}"
@@ -55,10 +58,25 @@ run_demo() {
   ls -1 "$out"
 }
 
+run_render_muscles() {
+  local out="${1:-$ROOT/out/muscles}" shared="${MYOSKIN_SHARED_DIR:-$ROOT/../shared}"
+  mkdir -p "$out"
+  BLENDER_USER_SCRIPTS="$BUILD/blender_scripts" blender -b --factory-startup --python-exit-code 1 \
+    --addons myoskin --python "$ROOT/examples/render_muscles.py" -- -o "$out" \
+    "$shared/characters/makehuman_muscular_male/makehuman_muscular_male.glb" \
+    "$shared/characters/makehuman_neutral/makehuman_neutral.glb"
+}
+
+run_bench() {
+  for b in "$BUILD"/bin/bench_*; do log "$(basename "$b")"; "$b"; done
+}
+
 case "${1:-}" in
   setup) setup ;;
   build) setup; build ;;
   test) setup; build; run_tests ;;
   demo) setup; build; run_demo "${2:-}" ;;
-  *) sed -n '2,8p' "$0"; exit 2 ;;
+  render-muscles) setup; build; run_render_muscles "${2:-}" ;;
+  bench) setup; build; run_bench ;;
+  *) sed -n '2,10p' "$0"; exit 2 ;;
 esac

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "myoskin/errors.h"
+#include "myoskin/extraction.h"
 #include "myoskin/io.h"
 #include "myoskin/synthetic_character.h"
 
@@ -120,6 +121,47 @@ int cmdGenerate(const Args& args) {
   return 0;
 }
 
+double numberOption(const Args& args, const std::string& name, double fallback) {
+  if (!args.options.count(name)) return fallback;
+  const std::string& text = args.options.at(name);
+  try {
+    size_t used = 0;
+    const double v = std::stod(text, &used);
+    if (used != text.size() || !std::isfinite(v)) throw std::invalid_argument(text);
+    return v;
+  } catch (const std::exception&) {
+    throw InputError(name + " needs a number, got '" + text + "'");
+  }
+}
+
+int cmdExtract(const Args& args) {
+  if (args.positional.size() != 1) throw InputError("extract needs exactly one CHARACTER file");
+  if (!args.options.count("--output")) throw InputError("extract needs -o muscles.json");
+  const auto skel = args.options.count("--skeleton") ? args.options.at("--skeleton") : std::string();
+  ExtractionOptions options;
+  options.planes.spacing = numberOption(args, "--spacing", 0.0);
+  if (options.planes.spacing < 0) throw InputError("--spacing must be >= 0 (0 = automatic)");
+  options.minConfidence = numberOption(args, "--min-confidence", 0.0);
+  if (options.minConfidence < 0 || options.minConfidence > 1) throw InputError("--min-confidence must be in [0, 1]");
+  options.link.minSections = static_cast<int>(numberOption(args, "--min-sections", options.link.minSections));
+  if (options.link.minSections < 1) throw InputError("--min-sections must be >= 1");
+  options.maxPerRegion = static_cast<int>(numberOption(args, "--max-per-region", 0));
+  options.buildSurfaces = std::find(args.flags.begin(), args.flags.end(), "--no-surfaces") == args.flags.end();
+  LoadOptions load;
+  load.requireWeights = true;
+  const Character c = loadCharacter(args.positional[0], load, skel);
+  const ExtractionResult r = extractMuscles(c, options);
+  writeMusclesJson(args.options.at("--output"), r.muscles);
+  double seconds = 0;
+  for (const StageTiming& t : r.report.timings) seconds += t.seconds;
+  std::set<std::string> regions;
+  for (const Muscle& m : r.muscles) regions.insert(m.region);
+  std::printf("extracted %d muscles in %zu regions from %s (%d planes, %d sections, %zu skipped, %d bumps, %.2f s) -> %s\n",
+              r.report.muscles, regions.size(), c.name.c_str(), r.report.planes, r.report.sections,
+              r.report.skipped.size(), r.report.bumps, seconds, args.options.at("--output").c_str());
+  return 0;
+}
+
 int cmdNotYet(const std::string& command, const Args& args) {
   if (args.positional.empty()) throw InputError(command + " needs a CHARACTER file");
   loadCharacter(args.positional[0]);  // bad input is still reported as bad input
@@ -139,7 +181,7 @@ int main(int argc, char** argv) {
     if (command == "info") return cmdInfo(parse(argc, argv, 2, {"--skeleton"}));
     if (command == "generate") return cmdGenerate(parse(argc, argv, 2, {"--output", "--seed", "--muscle-scale"}));
     if (command == "extract")
-      return cmdNotYet(command, parse(argc, argv, 2,
+      return cmdExtract(parse(argc, argv, 2,
                               {"--output", "--skeleton", "--spacing", "--min-confidence", "--min-sections", "--max-per-region"}));
     if (command == "deform") return cmdNotYet(command, parse(argc, argv, 2, {"--output", "--muscles", "--pose"}));
     std::fprintf(stderr, "myoskin: error: unknown command '%s' (try myoskin --help)\n", command.c_str());

@@ -32,4 +32,5 @@ PYBIND11_MODULE(_core, m) {
   myoskin::python::bindCharacter(m);
   myoskin::python::bindMuscles(m);
   myoskin::python::bindGenerate(m);
+  myoskin::python::bindExtraction(m);
 }

@@ -38,13 +38,32 @@ struct CuttingPlane {
   Vec3 normal = Vec3::UnitY();
   Vec3 xAxis = Vec3::UnitX();
   Vec3 yAxis = Vec3::UnitZ();
+  std::vector<int> region;  // bones whose skin the profile must stay on (by each vertex's dominant bone);
+                            // empty = anywhere. Limbs: the chain, its subtree and its parent; torso
+                            // families: every bone outside the limbs (the shoulder also the arm's first bone)
 };
 
 struct PlaneOptions {
-  double spacing = 0.0;  // metres between planes; 0 = derived from the mesh size (~1/70 of the height)
+  double spacing = 0.0;  // metres between planes; 0 = derived from the mesh size (1/100 of its largest extent)
   double endMargin = 0.12;  // fraction of a bone's length left out at each end (joints give no clean loops)
+  double bendAngle = 0.26;  // radians: a joint bending more than this inside a chain gets the end margins
+  double shoulderStart = 0.35;  // shoulder planes start this fraction along the clavicle chain
 };
 
+// Families (planes of one family instance are ordered by CuttingPlane::order):
+//   "limb"     one instance per chain of limb bones (upper arm + forearm, thigh + shin, twist splits
+//              included; an arm's chain starts at its shoulder bones, from shoulderStart of their length, so
+//              the deltoid is followed across the shoulder): planes perpendicular to the bone, `spacing` apart
+//              along the chain, end margins at the chain's ends and at joints bending more than bendAngle;
+//              the in-plane X axis is transported along the chain from the first bone's rest X axis, so
+//              consecutive 2D frames never flip.
+//   "shoulder" one instance per shoulder chain (clavicle, shoulder): perpendicular planes from
+//              shoulderStart of the chain to the shoulder joint (the trapezius/deltoid cap).
+//   "neck"     one instance per neck chain: perpendicular planes.
+//   "abdomen"  one instance: parallel planes normal to the spine's overall direction, from above the hip
+//              joints to the top of the spine, each centred on the spine where it crosses the plane.
+// Overlaps (shoulder vs upper arm, abdomen vs shoulder) are resolved later per muscle by dominance
+// (extraction.h, dominantMuscles). Deterministic: bones are visited in index order.
 std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const std::vector<BoneRole>& roles,
                                             const PlaneOptions& options = {});
 
@@ -53,15 +72,23 @@ std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const st
 struct SectionProfile {
   CuttingPlane plane;
   Points2 polygon;          // #P by 2, counter-clockwise; empty when skipped
+  std::vector<char> inMask;  // #P: the point lies on masked skin (all 1 without a mask)
+  double perimeter = 0.0;   // metres
   bool ok = false;
   std::string skipReason;   // why the section was skipped (no loop around the bone, open loop, ...)
 };
 
 struct ProfileOptions {
-  int samples = 0;  // points per profile after even resampling; 0 = derived from the spacing (~2 mm apart, 48..400)
+  int samples = 0;  // points per profile after even resampling; 0 = derived (~2 mm apart, 48..400)
+  double minRegionShare = 0.9;  // share of the loop's length that must lie on the plane's region
+  double minPerimeter = 0.01;   // metres: smaller loops are skipped
 };
 
-// Cut every plane through the skin. `vertexMask` (#V, optional): only triangles with a masked vertex count.
+// Cut every plane through the skin: the closed loop enclosing the plane origin (the smallest one), kept when
+// at least minRegionShare of it lies on the plane's region (else skipped: armpit, groin, a neighbouring limb),
+// made counter-clockwise and resampled evenly starting on the +X axis. `vertexMask` (#V, optional) marks the
+// profile points on masked skin (inMask); a section with no masked point is skipped. Parallel over planes,
+// deterministic. Throws InputError for a mask of the wrong size.
 std::vector<SectionProfile> cutSections(const Character& character, const std::vector<CuttingPlane>& planes,
                                         const ProfileOptions& options = {},
                                         const std::vector<char>* vertexMask = nullptr);

@@ -1,0 +1,202 @@
+// Stages 5-9 of muscle extraction (DESIGN.md section 4; Yang & Zhang 2006, "Muscle Extraction"):
+// link the bumps of consecutive sections into muscles, extend the root curve to origin and insertion
+// with Hermite curves, loft a closed surface, name the muscles; plus the one-shot pipeline
+// extractMuscles() that runs every stage (planes, profiles, bumps, ellipses, linking, ends, surface).
+#pragma once
+#include <map>
+#include <string>
+#include <vector>
+
+#include "myoskin/bumps.h"
+#include "myoskin/character.h"
+#include "myoskin/muscle.h"
+#include "myoskin/sections.h"
+#include "myoskin/synthetic_character.h"
+#include "myoskin/types.h"
+
+namespace myoskin {
+
+// ============================================================================
+// Options and results of the one-shot pipeline
+// ============================================================================
+
+struct LinkOptions {
+  // Two bumps of consecutive sections link when the lateral distance of their ellipse centres (the
+  // component perpendicular to the first plane's normal) is at most maxLateralFactor * the mean of
+  // their semi-axes a, AND their angular positions around the bone differ by at most maxAngle radians.
+  double maxLateralFactor = 0.9;
+  double maxAngle = 0.45;       // radians (~26 degrees)
+  int maxGap = 2;               // sections that may be missing between two linked bumps
+  int minSections = 4;          // a muscle needs at least this many recognised sections
+  bool branches = true;         // join merging/splitting chains with a transition section
+  double mergeFactor = 0.5;     // fragments of one belly (chains of a family whose centres come within this
+                                // times their larger mean semi-axis a at the same or a neighbouring plane)
+                                // are merged into one chain
+};
+
+struct EndOptions {
+  // The root curve's straight extension is searched for the nearest bone point up to this fraction of
+  // the visible (sectioned) length beyond each end; near-ties (within tieTolerance metres) prefer the
+  // point further out, so a muscle that runs parallel to its bone gets a tendon of that length.
+  double maxExtensionFraction = 0.35;
+  double tieTolerance = 0.004;
+  int samplesPerEnd = 6;        // Hermite samples added to the root curve on each side
+};
+
+struct SurfaceOptions {
+  int ringVertices = 32;        // vertices around each lofted ellipse
+  int capRings = 8;             // rings of each Hermite-tapered cap (the pole vertex comes after them)
+};
+
+struct ExtractionOptions {
+  PlaneOptions planes;          // spacing etc. of the cutting planes (sections.h)
+  ProfileOptions profiles;      // profile resampling (sections.h)
+  BumpOptions bumps;            // significance thresholds (bumps.h)
+  std::map<std::string, BoneRole> roleOverrides;  // bone name -> role (wins over the heuristics)
+  LinkOptions link;
+  EndOptions ends;
+  SurfaceOptions surface;
+  bool buildSurfaces = true;    // loft a surface mesh per muscle
+
+  // User control (paper, "User Control").
+  std::vector<char> vertexMask;                // #V (welded skin); empty = whole skin. Extract only here.
+  std::vector<std::vector<char>> forcedRegions;  // one #V mask per forced muscle: the dominant bump inside
+                                                 // the region is extracted even below significance
+  double forcedMinProtrusion = 0.0005;         // metres: bumps weaker than this are not forced either
+  double minConfidence = 0.0;                  // drop muscles below this confidence (forced ones are kept)
+  int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
+};
+
+struct SkippedSection {
+  int section = -1;             // index into the cut planes
+  std::string bone;
+  std::string family;
+  std::string reason;
+};
+
+struct StageTiming {
+  std::string stage;
+  double seconds = 0.0;
+};
+
+struct ExtractionReport {
+  int bones = 0, activeBones = 0;     // bones, bones with a role other than Ignore
+  int planes = 0;
+  int sections = 0;                   // profiles that gave a clean loop
+  int bumps = 0;                      // significant bumps over all sections
+  int chains = 0;                     // linked chains before the minimum-section filter
+  int branches = 0;                   // transition sections placed at merges/splits
+  int muscles = 0;                    // muscles returned
+  int droppedShort = 0, droppedConfidence = 0, droppedRegionLimit = 0;
+  int droppedOverlap = 0;             // muscles of a dominated family where families overlap
+  int forced = 0;                     // muscles from forced regions
+  std::vector<SkippedSection> skipped;
+  std::vector<StageTiming> timings;
+};
+
+struct ExtractionResult {
+  std::vector<Muscle> muscles;
+  ExtractionReport report;
+};
+
+// Throws InputError for an invalid character or a mask of the wrong size.
+ExtractionResult extractMuscles(const Character& character, const ExtractionOptions& options = {});
+
+// ============================================================================
+// Stages, exposed for tests and tools
+// ============================================================================
+
+// One section's bumps as linking sees them (ellipses in the plane's 2D frame).
+struct SectionBumps {
+  CuttingPlane plane;
+  std::vector<Ellipse2> ellipses;
+  std::vector<double> significance;  // per ellipse (>= 1 significant)
+  std::vector<char> forced;          // per ellipse, optional (empty = none forced)
+};
+
+// 3D position of a plane-frame 2D point.
+Vec3 planePoint(const CuttingPlane& plane, const Vec2& p);
+
+// A linked chain: one ellipse per used section, in increasing plane order. A transition section (the
+// average of the two ellipses where branches join) has bump = -1 and carries its own ellipse.
+struct ChainLink {
+  int section = -1;   // index into the SectionBumps list
+  int bump = -1;      // index of the ellipse in that section, -1 for a transition section
+  Ellipse2 ellipse;   // copy of the ellipse (plane coordinates of `section`)
+};
+struct MuscleChain {
+  std::string family;
+  int familyIndex = 0;
+  int bone = -1;                 // bone of the plane with the most links
+  std::vector<ChainLink> links;
+  int realSections = 0;          // links with bump >= 0
+  double confidence = 0.0;       // in [0, 1]
+  bool forced = false;
+};
+
+// Links bumps across consecutive planes of each family instance (family, familyIndex), ordered by
+// CuttingPlane::order. Rule: for each section in order, every open chain whose last link lies at most
+// 1 + maxGap orders back is a candidate; all (chain, bump) pairs that pass the distance/angle test are
+// sorted by cost (lateral distance / mean a + angle / maxAngle) and assigned greedily, one bump per chain.
+// Unassigned bumps start new chains. Branches: a new chain whose first bump also passes the test
+// against a chain that continued (a split), or a chain that ends while its last bump passes the test
+// against a bump another chain took (a merge), gets a transition section — the average ellipse of the
+// two, placed in the plane of the shared-side section — so both branches meet at the junction.
+// Returns every chain (also short ones; filter with realSections >= minSections), sorted by family,
+// familyIndex, then first plane order, then angle.
+std::vector<MuscleChain> linkBumps(const std::vector<SectionBumps>& sections, const LinkOptions& options = {},
+                                   int* branchCount = nullptr);
+
+// Confidence of a chain in [0, 1]: the geometric mean of (a) section count, min(1, n / (2 minSections)),
+// (b) mean significance, 1 - exp(-mean / 2), (c) consistency, 1 / (1 + relative variation of a, b and
+// lateral centre steps between consecutive links).
+double chainConfidence(const MuscleChain& chain, const std::vector<SectionBumps>& sections,
+                       const LinkOptions& options = {});
+
+// Families overlap (a shoulder's planes and the upper arm's planes both cut the deltoid): among muscles of
+// different families (`families`, one per muscle) whose centre lines overlap — at least `minOverlap` of one
+// muscle's section centres within the larger mean semi-axis a of the other's centre line — only the one from
+// the dominating family is kept (more sections, then higher confidence). Returns keep flags (#muscles).
+std::vector<char> dominantMuscles(const std::vector<Muscle>& muscles, const std::vector<std::string>& families,
+                                  double minOverlap = 0.5);
+
+// Cubic Hermite curve p(t) on [0, 1] with end points p0, p1 and end tangents m0, m1 (derivatives).
+Vec3 hermite(const Vec3& p0, const Vec3& m0, const Vec3& p1, const Vec3& m1, double t);
+
+// Turns a chain into a muscle: sections in 3D (normal oriented origin -> insertion), root curve
+// = origin, Hermite extension, ellipse centres, Hermite extension, insertion. Origin/insertion: the
+// nearest point on a bone (the chain's bone, its parent or a child, whichever is nearest) to the
+// straight extension of the root curve (EndOptions). u by arc length of the full root curve.
+Muscle buildMuscleEnds(const MuscleChain& chain, const std::vector<SectionBumps>& sections,
+                       const Skeleton& skeleton, const EndOptions& options = {});
+
+// Same, from 3D sections given directly (centres in order; normals may point either way; u ignored).
+// `bone` is the muscle's bone index in `skeleton`.
+Muscle buildMuscleEnds(const std::vector<MuscleSection>& sections, int bone, const Skeleton& skeleton,
+                       const EndOptions& options = {});
+
+// Lofts the muscle's sections into a closed, outward-oriented, watertight triangle mesh with
+// Hermite-tapered caps to the origin and insertion (one pole vertex each). Rings follow a frame
+// transported along the centres, so ellipses whose axis a turns do not twist the loft.
+Mesh loftMuscleSurface(const Muscle& muscle, const SurfaceOptions& options = {});
+
+// ============================================================================
+// Measurement (DESIGN.md section 8)
+// ============================================================================
+
+struct ExtractionAccuracy {
+  int trueMuscles = 0, foundMuscles = 0, matched = 0;
+  double recall = 0.0, precision = 0.0;
+  double meanCenterError = 0.0;  // mean distance of matched root-curve points to the true centre line,
+                                 // relative to the true muscle's peak radius
+  std::vector<int> matchOfTrue;  // per true muscle: index of its found muscle, or -1
+};
+
+// A found muscle matches a true one when its root curve stays within half the true muscle's (peak)
+// radius of the true centre line over at least `minCoverage` of the true length (the true line is
+// sampled densely; a sample is covered when the found root curve passes within the distance).
+// Matching is one-to-one, greedy by coverage. meanCenterError uses the matched muscles' section centres.
+ExtractionAccuracy measureExtraction(const std::vector<Muscle>& found, const std::vector<TrueMuscle>& truth,
+                                     double minCoverage = 0.6);
+
+}  // namespace myoskin

@@ -1,0 +1,286 @@
+// The extraction pipeline (DESIGN.md section 4): bone roles -> cutting planes -> profile sections ->
+// CDT, bumps and ellipses per section (parallel, deterministic) -> linking -> ends -> surfaces -> names.
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <numeric>
+
+#include "muscles/muscle_util.h"
+#include "myoskin/errors.h"
+#include "myoskin/extraction.h"
+
+namespace myoskin {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// Per-section work result.
+struct SectionWork {
+  bool ok = false;
+  std::string reason;
+  std::vector<Ellipse2> ellipses;
+  std::vector<double> significance;
+  std::vector<int> forcedRegion;  // per ellipse: forced region index or -1
+};
+
+// Does bump arc [first, last] (counter-clockwise, wrapping) contain polygon index i?
+bool arcContains(const Bump& b, int i, int n) {
+  const int len = ((b.last - b.first) % n + n) % n;
+  const int off = ((i - b.first) % n + n) % n;
+  return off <= len;
+}
+
+bool arcsOverlap(const Bump& x, const Bump& y, int n) {
+  return arcContains(x, y.first, n) || arcContains(x, y.last, n) || arcContains(y, x.first, n) ||
+         arcContains(y, x.apex, n);
+}
+
+// Sector name of a point around a bone, from the bone's rest X and Z axes.
+std::string sideName(const Bone& bone, const Vec3& p) {
+  const Vec3 c = detail::closestOnSegment(p, bone.head, bone.tail);
+  const Vec3 v = p - c;
+  const Vec3 x = bone.rest.block<3, 1>(0, 0), z = bone.rest.block<3, 1>(0, 2);
+  const double ax = v.dot(x), az = v.dot(z);
+  if (std::abs(ax) >= std::abs(az)) return ax >= 0 ? "xpos" : "xneg";
+  return az >= 0 ? "zpos" : "zneg";
+}
+
+}  // namespace
+
+ExtractionResult extractMuscles(const Character& character, const ExtractionOptions& options) {
+  validateCharacter(character);
+  const int nv = character.mesh.numVertices();
+  if (!options.vertexMask.empty() && static_cast<int>(options.vertexMask.size()) != nv)
+    throw InputError("extraction vertex mask has " + std::to_string(options.vertexMask.size()) +
+                     " entries, the skin has " + std::to_string(nv) + " vertices");
+  for (size_t r = 0; r < options.forcedRegions.size(); ++r)
+    if (static_cast<int>(options.forcedRegions[r].size()) != nv)
+      throw InputError("forced region " + std::to_string(r) + " has " + std::to_string(options.forcedRegions[r].size()) +
+                       " entries, the skin has " + std::to_string(nv) + " vertices");
+
+  ExtractionResult result;
+  ExtractionReport& rep = result.report;
+  const Skeleton& sk = character.skeleton;
+
+  // Stage 1: roles and planes.
+  auto t0 = Clock::now();
+  const std::vector<BoneRole> roles = classifyBones(sk, options.roleOverrides);
+  rep.bones = sk.numBones();
+  for (BoneRole r : roles) rep.activeBones += r != BoneRole::Ignore;
+  const std::vector<CuttingPlane> planes = makeCuttingPlanes(character, roles, options.planes);
+  rep.planes = static_cast<int>(planes.size());
+  rep.timings.push_back({"planes", secondsSince(t0)});
+
+  // Stage 2: profiles.
+  t0 = Clock::now();
+  const std::vector<SectionProfile> profiles =
+      cutSections(character, planes, options.profiles, options.vertexMask.empty() ? nullptr : &options.vertexMask);
+  rep.timings.push_back({"sections", secondsSince(t0)});
+
+  // Forced regions: their vertices, and the slab half-width around each plane that counts as "on" it.
+  double slab = options.planes.spacing;
+  if (!(slab > 0)) {
+    std::vector<double> gaps;
+    for (size_t i = 1; i < planes.size(); ++i)
+      if (planes[i].family == planes[i - 1].family && planes[i].familyIndex == planes[i - 1].familyIndex)
+        gaps.push_back((planes[i].origin - planes[i - 1].origin).norm());
+    std::sort(gaps.begin(), gaps.end());
+    slab = gaps.empty() ? 0.02 : gaps[gaps.size() / 2];
+  }
+  slab *= 0.5;
+  std::vector<std::vector<int>> forcedVerts(options.forcedRegions.size());
+  for (size_t r = 0; r < options.forcedRegions.size(); ++r)
+    for (int v = 0; v < nv; ++v)
+      if (options.forcedRegions[r][v]) forcedVerts[r].push_back(v);
+
+  // Stages 3-4: CDT, bumps, ellipses per section (parallel over sections, results by index).
+  t0 = Clock::now();
+  std::vector<SectionWork> work(profiles.size());
+  tbb::parallel_for(size_t(0), profiles.size(), [&](size_t i) {
+    const SectionProfile& prof = profiles[i];
+    SectionWork& w = work[i];
+    if (!prof.ok) {
+      w.reason = prof.skipReason.empty() ? "no clean loop" : prof.skipReason;
+      return;
+    }
+    try {
+      const SectionTriangulation tri = triangulateSection(prof.polygon);
+      std::vector<Bump> bumps = findBumps(prof.polygon, options.bumps, &tri);
+      if (!options.vertexMask.empty())  // extract only within the mask: the bump's apex must lie on it
+        bumps.erase(std::remove_if(bumps.begin(), bumps.end(), [&](const Bump& b) { return !prof.inMask[b.apex]; }),
+                    bumps.end());
+      std::vector<int> forced(bumps.size(), -1);
+      if (!forcedVerts.empty()) {
+        // Weak bumps too, then for each forced region the dominant bump touching the region here.
+        BumpOptions weak = options.bumps;
+        weak.minProtrusion = options.forcedMinProtrusion;
+        weak.minRelativeProtrusion = 0.0;
+        const std::vector<Bump> weakBumps = findBumps(prof.polygon, weak, &tri);
+        const int np = static_cast<int>(prof.polygon.rows());
+        double perim = 0;
+        for (int k = 0; k < np; ++k) perim += (prof.polygon.row((k + 1) % np) - prof.polygon.row(k)).norm();
+        const double tol = std::max(2.0 * perim / std::max(np, 1), 0.004);
+        for (size_t r = 0; r < forcedVerts.size(); ++r) {
+          std::vector<char> near(np, 0);
+          bool any = false;
+          for (int v : forcedVerts[r]) {
+            const Vec3 p = character.mesh.vertices.row(v).transpose() - prof.plane.origin;
+            if (std::abs(p.dot(prof.plane.normal)) > slab) continue;
+            const Vec2 q(p.dot(prof.plane.xAxis), p.dot(prof.plane.yAxis));
+            for (int k = 0; k < np; ++k)
+              if ((prof.polygon.row(k).transpose() - q).norm() <= tol) near[k] = 1, any = true;
+          }
+          if (!any) continue;
+          int best = -1;
+          for (size_t b = 0; b < weakBumps.size(); ++b) {
+            bool touches = false;
+            for (int k = 0; k < np && !touches; ++k) touches = near[k] && arcContains(weakBumps[b], k, np);
+            if (touches && (best < 0 || weakBumps[b].protrusion > weakBumps[best].protrusion)) best = static_cast<int>(b);
+          }
+          if (best < 0) continue;
+          int same = -1;
+          for (size_t b = 0; b < bumps.size(); ++b)
+            if (arcsOverlap(bumps[b], weakBumps[best], np)) same = static_cast<int>(b);
+          if (same >= 0) {
+            forced[same] = static_cast<int>(r);
+          } else {
+            Bump fb = weakBumps[best];
+            fb.significance = options.bumps.minProtrusion > 0 ? fb.protrusion / options.bumps.minProtrusion : 1.0;
+            bumps.push_back(fb);
+            forced.push_back(static_cast<int>(r));
+          }
+        }
+      }
+      for (size_t b = 0; b < bumps.size(); ++b) {
+        const Ellipse2 e = fitBumpEllipse(prof.polygon, bumps[b], tri);
+        if (!std::isfinite(e.center.x()) || !std::isfinite(e.center.y()) || !(e.a > 0) || !(e.b > 0)) continue;
+        w.ellipses.push_back(e);
+        w.significance.push_back(bumps[b].significance);
+        w.forcedRegion.push_back(forced[b]);
+      }
+      w.ok = true;
+    } catch (const std::exception& ex) {
+      w.reason = std::string("triangulation/bumps failed: ") + ex.what();
+    }
+  });
+  std::vector<SectionBumps> sections;
+  std::vector<std::vector<int>> forcedOf;  // per section, per ellipse
+  for (size_t i = 0; i < profiles.size(); ++i) {
+    if (!work[i].ok) {
+      const CuttingPlane& p = planes[i];
+      rep.skipped.push_back({static_cast<int>(i), p.bone >= 0 ? sk.bones[p.bone].name : "", p.family, work[i].reason});
+      continue;
+    }
+    ++rep.sections;
+    SectionBumps s;
+    s.plane = profiles[i].plane;
+    s.ellipses = work[i].ellipses;
+    s.significance = work[i].significance;
+    for (int f : work[i].forcedRegion) s.forced.push_back(f >= 0);
+    for (double sg : s.significance) rep.bumps += sg >= 1.0;
+    forcedOf.push_back(work[i].forcedRegion);
+    sections.push_back(std::move(s));
+  }
+  rep.timings.push_back({"bumps", secondsSince(t0)});
+
+  // Stage 5: linking.
+  t0 = Clock::now();
+  std::vector<MuscleChain> chains = linkBumps(sections, options.link, &rep.branches);
+  rep.chains = static_cast<int>(chains.size());
+  // Each forced region keeps one chain: the one with the most links from that region.
+  for (MuscleChain& c : chains) c.forced = false;
+  for (size_t r = 0; r < options.forcedRegions.size(); ++r) {
+    int best = -1, bestCount = 0;
+    for (size_t c = 0; c < chains.size(); ++c) {
+      int count = 0;
+      for (const ChainLink& l : chains[c].links)
+        if (l.bump >= 0 && forcedOf[l.section][l.bump] == static_cast<int>(r)) ++count;
+      if (count > bestCount) best = static_cast<int>(c), bestCount = count;
+    }
+    if (best >= 0) chains[best].forced = true;
+  }
+  std::vector<MuscleChain> kept;
+  for (MuscleChain& c : chains) {
+    if (c.forced) {
+      kept.push_back(std::move(c));
+      continue;
+    }
+    if (c.realSections < options.link.minSections) {
+      ++rep.droppedShort;
+      continue;
+    }
+    if (c.confidence < options.minConfidence) {
+      ++rep.droppedConfidence;
+      continue;
+    }
+    kept.push_back(std::move(c));
+  }
+  rep.timings.push_back({"link", secondsSince(t0)});
+
+  // Stage 6: ends, naming, regions.
+  t0 = Clock::now();
+  std::vector<Muscle> muscles(kept.size());
+  tbb::parallel_for(size_t(0), kept.size(), [&](size_t i) {
+    muscles[i] = buildMuscleEnds(kept[i], sections, sk, options.ends);
+    muscles[i].confidence = kept[i].confidence;
+  });
+  std::vector<std::string> regions(kept.size());
+  for (size_t i = 0; i < kept.size(); ++i) {
+    const std::string& bone = sk.bones[kept[i].bone].name;
+    regions[i] = kept[i].family == "limb" ? bone : "torso." + kept[i].family + "." + bone;
+    muscles[i].region = regions[i];
+  }
+  // Overlapping families: keep the dominating family's muscle (forced muscles always stay).
+  std::vector<std::string> families(kept.size());
+  for (size_t i = 0; i < kept.size(); ++i) families[i] = kept[i].family;
+  std::vector<char> keep = dominantMuscles(muscles, families);
+  for (size_t i = 0; i < kept.size(); ++i) {
+    if (kept[i].forced) keep[i] = 1;
+    rep.droppedOverlap += !keep[i];
+  }
+  // Region limit: the most confident (forced first) per region.
+  if (options.maxPerRegion > 0) {
+    std::map<std::string, std::vector<int>> byRegion;
+    for (size_t i = 0; i < kept.size(); ++i)
+      if (keep[i]) byRegion[regions[i]].push_back(static_cast<int>(i));
+    for (auto& [region, ids] : byRegion) {
+      std::stable_sort(ids.begin(), ids.end(), [&](int x, int y) {
+        if (kept[x].forced != kept[y].forced) return kept[x].forced;
+        return kept[x].confidence > kept[y].confidence;
+      });
+      for (size_t j = options.maxPerRegion; j < ids.size(); ++j)
+        if (!kept[ids[j]].forced) keep[ids[j]] = 0, ++rep.droppedRegionLimit;
+    }
+  }
+  std::map<std::string, int> nameCount;
+  for (size_t i = 0; i < kept.size(); ++i) {
+    if (!keep[i]) continue;
+    Muscle& m = muscles[i];
+    const Bone& bone = sk.bones[kept[i].bone];
+    const Vec3 mid = m.sections[m.sections.size() / 2].center;
+    const std::string base = bone.name + "_" + sideName(bone, mid);
+    m.name = base + "_" + std::to_string(++nameCount[base]);
+    if (kept[i].forced) ++rep.forced;
+    result.muscles.push_back(std::move(m));
+  }
+  rep.timings.push_back({"ends", secondsSince(t0)});
+
+  // Stage 7: surfaces.
+  t0 = Clock::now();
+  if (options.buildSurfaces) {
+    tbb::parallel_for(size_t(0), result.muscles.size(), [&](size_t i) {
+      result.muscles[i].surface = loftMuscleSurface(result.muscles[i], options.surface);
+    });
+  }
+  rep.timings.push_back({"surface", secondsSince(t0)});
+  rep.muscles = static_cast<int>(result.muscles.size());
+  return result;
+}
+
+}  // namespace myoskin

@@ -1,0 +1,144 @@
+// Stage 6: the root curve through the section centres, extended at both ends with cubic Hermite curves
+// (tangent continuous) to the default origin and insertion: the nearest bone point to the straight
+// extension of the root curve (paper, "Muscle Deformation").
+#include <algorithm>
+#include <cmath>
+
+#include "muscles/muscle_util.h"
+#include "myoskin/errors.h"
+#include "myoskin/extraction.h"
+
+namespace myoskin {
+
+Vec3 hermite(const Vec3& p0, const Vec3& m0, const Vec3& p1, const Vec3& m1, double t) {
+  const double t2 = t * t, t3 = t2 * t;
+  return (2 * t3 - 3 * t2 + 1) * p0 + (t3 - 2 * t2 + t) * m0 + (-2 * t3 + 3 * t2) * p1 + (t3 - t2) * m1;
+}
+
+namespace {
+
+struct EndPoint {
+  int bone = -1;
+  Vec3 position = Vec3::Zero();
+};
+
+// Nearest bone point to the extension end + s * dir, s in [0, maxLength]; candidates = bones.
+// Near-ties (within tol of the minimum distance) prefer the sample further out.
+EndPoint findExtremity(const Vec3& end, const Vec3& dir, double maxLength, const std::vector<int>& bones,
+                       const Skeleton& skeleton, double tol) {
+  const int samples = 48;
+  std::vector<double> dist(samples + 1, INFINITY);
+  std::vector<EndPoint> at(samples + 1);
+  double dmin = INFINITY;
+  for (int k = 0; k <= samples; ++k) {
+    const Vec3 q = end + (maxLength * k / samples) * dir;
+    for (int b : bones) {
+      const Bone& bone = skeleton.bones[b];
+      const Vec3 c = detail::closestOnSegment(q, bone.head, bone.tail);
+      const double d = (q - c).norm();
+      if (d < dist[k]) dist[k] = d, at[k] = EndPoint{b, c};
+    }
+    dmin = std::min(dmin, dist[k]);
+  }
+  for (int k = samples; k >= 0; --k)
+    if (dist[k] <= dmin + tol) return at[k];
+  return at[0];
+}
+
+}  // namespace
+
+Muscle buildMuscleEnds(const std::vector<MuscleSection>& input, int bone, const Skeleton& skeleton,
+                       const EndOptions& options) {
+  if (input.empty()) throw InputError("buildMuscleEnds: a muscle needs at least one section");
+  if (bone < 0 || bone >= skeleton.numBones()) throw InputError("buildMuscleEnds: bad bone index");
+  Muscle m;
+  m.sections = input;
+  const int n = static_cast<int>(m.sections.size());
+  std::vector<Vec3> centers(n);
+  for (int i = 0; i < n; ++i) centers[i] = m.sections[i].center;
+
+  // Directions along the curve (origin -> insertion); normals oriented the same way.
+  Vec3 first = n > 1 ? (centers[1] - centers[0]) : input[0].normal;
+  Vec3 last = n > 1 ? (centers[n - 1] - centers[n - 2]) : input[0].normal;
+  if (first.norm() < 1e-12) first = input[0].normal;
+  if (last.norm() < 1e-12) last = input[n - 1].normal;
+  first.normalize();
+  last.normalize();
+  for (int i = 0; i < n; ++i) {
+    MuscleSection& s = m.sections[i];
+    Vec3 along = n > 1 ? centers[std::min(i + 1, n - 1)] - centers[std::max(i - 1, 0)] : first;
+    if (along.norm() < 1e-12) along = first;
+    s.normal.normalize();
+    if (s.normal.dot(along) < 0) s.normal = -s.normal;
+    s.axisA = detail::perpendicularTo(s.axisA, s.normal);
+  }
+
+  // Candidate bones: the muscle's bone, its parent and its children.
+  std::vector<int> bones{bone};
+  if (skeleton.bones[bone].parent >= 0) bones.push_back(skeleton.bones[bone].parent);
+  for (int c : skeleton.children(bone)) bones.push_back(c);
+
+  double meanB = 0;
+  for (const MuscleSection& s : m.sections) meanB += s.b;
+  meanB /= n;
+  const double visible = detail::polylineLength(centers);
+  const double maxLen = std::max(options.maxExtensionFraction * visible, 2.0 * meanB);
+  const EndPoint o = findExtremity(centers[0], -first, maxLen, bones, skeleton, options.tieTolerance);
+  const EndPoint e = findExtremity(centers[n - 1], last, maxLen, bones, skeleton, options.tieTolerance);
+  m.origin = MuscleAttachment{skeleton.bones[o.bone].name, o.position};
+  m.insertion = MuscleAttachment{skeleton.bones[e.bone].name, e.position};
+
+  // Root curve: origin, Hermite (tangent at the first centre = the first chord), centres, Hermite, insertion.
+  const int k = std::max(1, options.samplesPerEnd);
+  std::vector<Vec3> curve;
+  std::vector<int> centerIndex(n);
+  {
+    const double L = (centers[0] - o.position).norm();
+    const Vec3 m0 = L > 1e-12 ? Vec3((centers[0] - o.position)) : Vec3(L * first);
+    const Vec3 m1 = L * first;
+    curve.push_back(o.position);
+    for (int j = 1; j < k; ++j) curve.push_back(hermite(o.position, m0, centers[0], m1, double(j) / k));
+  }
+  for (int i = 0; i < n; ++i) {
+    centerIndex[i] = static_cast<int>(curve.size());
+    curve.push_back(centers[i]);
+  }
+  {
+    const double L = (e.position - centers[n - 1]).norm();
+    const Vec3 m0 = L * last;
+    const Vec3 m1 = L > 1e-12 ? Vec3(e.position - centers[n - 1]) : Vec3(L * last);
+    for (int j = 1; j < k; ++j) curve.push_back(hermite(centers[n - 1], m0, e.position, m1, double(j) / k));
+    curve.push_back(e.position);
+  }
+  // u by arc length over the full root curve.
+  std::vector<double> arc(curve.size(), 0.0);
+  for (size_t i = 1; i < curve.size(); ++i) arc[i] = arc[i - 1] + (curve[i] - curve[i - 1]).norm();
+  const double total = arc.back();
+  for (int i = 0; i < n; ++i)
+    m.sections[i].u = total > 1e-12 ? std::clamp(-1.0 + 2.0 * arc[centerIndex[i]] / total, -1.0, 1.0) : 0.0;
+  // Strictly increasing u (coincident centres would repeat a value).
+  for (int i = 1; i < n; ++i)
+    if (m.sections[i].u <= m.sections[i - 1].u) m.sections[i].u = std::min(1.0, m.sections[i - 1].u + 1e-9);
+  m.rootCurve = std::move(curve);
+  return m;
+}
+
+Muscle buildMuscleEnds(const MuscleChain& chain, const std::vector<SectionBumps>& sections, const Skeleton& skeleton,
+                       const EndOptions& options) {
+  std::vector<MuscleSection> s;
+  s.reserve(chain.links.size());
+  for (const ChainLink& l : chain.links) {
+    const CuttingPlane& p = sections[l.section].plane;
+    MuscleSection ms;
+    ms.center = planePoint(p, l.ellipse.center);
+    ms.axisA = (std::cos(l.ellipse.angle) * p.xAxis + std::sin(l.ellipse.angle) * p.yAxis).normalized();
+    ms.a = std::max(l.ellipse.a, l.ellipse.b);
+    ms.b = std::min(l.ellipse.a, l.ellipse.b);
+    if (l.ellipse.b > l.ellipse.a) ms.axisA = p.normal.normalized().cross(ms.axisA).normalized();
+    ms.normal = p.normal.normalized();
+    s.push_back(ms);
+  }
+  return buildMuscleEnds(s, chain.bone, skeleton, options);
+}
+
+}  // namespace myoskin

@@ -1,0 +1,215 @@
+// Profiles: the skin loop around the bone on each cutting plane, checked against the plane's skin region,
+// counter-clockwise and evenly resampled (sections.h).
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "myoskin/errors.h"
+#include "myoskin/sections.h"
+#include "sections/plane_loops.h"
+
+namespace myoskin {
+
+namespace {
+
+// ============================================================================
+// Loop selection
+// ============================================================================
+
+struct Loop2 {
+  std::vector<Vec2> points;
+  std::vector<std::array<int, 2>> edges;
+  double area = 0.0;  // signed
+};
+
+Loop2 toPlane(const detail::PlaneLoop& loop, const CuttingPlane& p) {
+  Loop2 l;
+  l.edges = loop.edges;
+  for (const Vec3& q : loop.points) l.points.emplace_back((q - p.origin).dot(p.xAxis), (q - p.origin).dot(p.yAxis));
+  const size_t n = l.points.size();
+  for (size_t i = 0; i < n; ++i) {
+    const Vec2 &a = l.points[i], &b = l.points[(i + 1) % n];
+    l.area += 0.5 * (a.x() * b.y() - b.x() * a.y());
+  }
+  return l;
+}
+
+// Crossing-number test of the plane origin (0, 0).
+bool enclosesOrigin(const std::vector<Vec2>& pts) {
+  bool inside = false;
+  for (size_t i = 0, j = pts.size() - 1; i < pts.size(); j = i++) {
+    const Vec2 &a = pts[i], &b = pts[j];
+    if ((a.y() > 0) != (b.y() > 0) && 0.0 < (b.x() - a.x()) * (0.0 - a.y()) / (b.y() - a.y()) + a.x()) inside = !inside;
+  }
+  return inside;
+}
+
+// ============================================================================
+// Resampling
+// ============================================================================
+
+// N points evenly spaced by arc length along the closed CCW loop, starting where it crosses the +X axis.
+// `source` receives, per output point, the loop index of the segment it lies on.
+Points2 resample(const std::vector<Vec2>& pts, int count, std::vector<int>& source) {
+  const size_t n = pts.size();
+  size_t start = 0;
+  double bestX = INFINITY;
+  for (size_t i = 0; i < n; ++i) {
+    const Vec2 &a = pts[i], &b = pts[(i + 1) % n];
+    if (a.y() < 0 && b.y() >= 0) {
+      const double x = a.x() + (b.x() - a.x()) * (-a.y()) / (b.y() - a.y());
+      if (x > 0 && x < bestX) bestX = x, start = i;
+    }
+  }
+  std::vector<Vec2> ring;
+  std::vector<int> ringIndex;
+  const Vec2 &a0 = pts[start], &b0 = pts[(start + 1) % n];
+  const double t0 = std::isfinite(bestX) && b0.y() != a0.y() ? (-a0.y()) / (b0.y() - a0.y()) : 0.0;
+  ring.push_back(a0 + t0 * (b0 - a0));
+  ringIndex.push_back(static_cast<int>(start));
+  for (size_t k = 1; k <= n; ++k) {
+    const size_t i = (start + k) % n;
+    ring.push_back(pts[i]);
+    ringIndex.push_back(static_cast<int>(i));
+  }
+  ring.push_back(ring.front());
+  ringIndex.push_back(static_cast<int>(start));
+  std::vector<double> acc(ring.size(), 0.0);
+  for (size_t i = 1; i < ring.size(); ++i) acc[i] = acc[i - 1] + (ring[i] - ring[i - 1]).norm();
+  const double total = acc.back();
+  Points2 out(count, 2);
+  source.assign(count, 0);
+  size_t seg = 0;
+  for (int k = 0; k < count; ++k) {
+    const double s = total * k / count;
+    while (seg + 2 < ring.size() && acc[seg + 1] < s) ++seg;
+    const double len = acc[seg + 1] - acc[seg];
+    const double t = len > 0 ? (s - acc[seg]) / len : 0.0;
+    out.row(k) = (ring[seg] + t * (ring[seg + 1] - ring[seg])).transpose();
+    source[k] = ringIndex[seg];
+  }
+  return out;
+}
+
+// ============================================================================
+// One section
+// ============================================================================
+
+SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const ProfileOptions& o,
+                      const std::vector<int>& dominant, const std::vector<char>* mask) {
+  SectionProfile prof;
+  prof.plane = plane;
+  std::vector<double> scratch;
+  const std::vector<detail::PlaneLoop> loops = detail::planeLoops(c.mesh, plane.origin, plane.normal, scratch);
+  int best = -1;
+  bool openNearby = false;
+  std::vector<Loop2> flat;
+  for (const detail::PlaneLoop& l : loops) flat.push_back(toPlane(l, plane));
+  for (size_t i = 0; i < loops.size(); ++i) {
+    if (!loops[i].closed) {
+      openNearby = true;
+      continue;
+    }
+    if (flat[i].points.size() >= 3 && enclosesOrigin(flat[i].points) &&
+        (best < 0 || std::abs(flat[i].area) < std::abs(flat[best].area)))
+      best = static_cast<int>(i);
+  }
+  if (best < 0) {
+    prof.skipReason = openNearby ? "the skin is open here (the cut runs into a hole)" : "no skin loop encloses the bone here";
+    return prof;
+  }
+  Loop2 loop = flat[best];
+  const size_t n = loop.points.size();
+  double perimeter = 0.0, onRegion = 0.0;
+  std::vector<char> region;
+  if (!plane.region.empty() && !dominant.empty()) {
+    region.assign(c.skeleton.numBones(), 0);
+    for (int b : plane.region) region[b] = 1;
+  }
+  auto inRegion = [&](size_t i) {
+    if (region.empty()) return true;
+    for (int v : loop.edges[i])
+      if (dominant[v] >= 0 && region[dominant[v]]) return true;
+    return false;
+  };
+  for (size_t i = 0; i < n; ++i) {
+    const double len = (loop.points[(i + 1) % n] - loop.points[i]).norm();
+    perimeter += len;
+    if (inRegion(i) && inRegion((i + 1) % n)) onRegion += len;
+  }
+  prof.perimeter = perimeter;
+  if (perimeter < o.minPerimeter) {
+    prof.skipReason = "the loop around the bone is too small (" + std::to_string(perimeter) + " m)";
+    return prof;
+  }
+  if (onRegion < o.minRegionShare * perimeter) {
+    prof.skipReason = "the loop leaves the bone's skin region (armpit, groin or a neighbouring part): " +
+                      std::to_string(static_cast<int>(100 * onRegion / perimeter)) + " % on it";
+    return prof;
+  }
+  if (loop.area < 0) {
+    std::reverse(loop.points.begin(), loop.points.end());
+    std::reverse(loop.edges.begin(), loop.edges.end());
+  }
+  const int count = o.samples > 0 ? o.samples : std::clamp(static_cast<int>(std::lround(perimeter / 0.002)), 48, 400);
+  std::vector<int> source;
+  prof.polygon = resample(loop.points, count, source);
+  prof.inMask.assign(count, 1);
+  if (mask) {
+    bool any = false;
+    for (int k = 0; k < count; ++k) {
+      const auto& e = loop.edges[source[k]];
+      prof.inMask[k] = (*mask)[e[0]] || (*mask)[e[1]];
+      any |= prof.inMask[k] != 0;
+    }
+    if (!any) {
+      prof.polygon.resize(0, 2);
+      prof.inMask.clear();
+      prof.skipReason = "outside the vertex mask";
+      return prof;
+    }
+  }
+  prof.ok = true;
+  return prof;
+}
+
+}  // namespace
+
+// ============================================================================
+// Public
+// ============================================================================
+
+std::vector<SectionProfile> cutSections(const Character& character, const std::vector<CuttingPlane>& planes,
+                                        const ProfileOptions& options, const std::vector<char>* vertexMask) {
+  const int nv = character.mesh.numVertices();
+  if (vertexMask && static_cast<int>(vertexMask->size()) != nv)
+    throw InputError("section vertex mask has " + std::to_string(vertexMask->size()) + " entries, the skin has " +
+                     std::to_string(nv) + " vertices");
+  // Each vertex's dominant bone (-1 without weights).
+  std::vector<int> dominant;
+  if (character.hasWeights()) {
+    dominant.assign(nv, -1);
+    for (int v = 0; v < nv; ++v) {
+      double w = 0.0;
+      for (int s = 0; s < character.weights.influences(); ++s)
+        if (character.weights.joints(v, s) >= 0 && character.weights.weights(v, s) > w)
+          w = character.weights.weights(v, s), dominant[v] = character.weights.joints(v, s);
+    }
+  }
+  std::vector<SectionProfile> out(planes.size());
+  tbb::parallel_for(size_t(0), planes.size(), [&](size_t i) {
+    try {
+      out[i] = cutOne(character, planes[i], options, dominant, vertexMask);
+    } catch (const std::exception& e) {
+      out[i] = SectionProfile{};
+      out[i].plane = planes[i];
+      out[i].skipReason = std::string("cutting failed: ") + e.what();
+    }
+  });
+  return out;
+}
+
+}  // namespace myoskin

