@@ -141,7 +141,7 @@ int cmdExtract(const Args& args) {
   ExtractionOptions options;
   options.planes.spacing = numberOption(args, "--spacing", 0.0);
   if (options.planes.spacing < 0) throw InputError("--spacing must be >= 0 (0 = automatic)");
-  options.minConfidence = numberOption(args, "--min-confidence", 0.0);
+  options.minConfidence = numberOption(args, "--min-confidence", options.minConfidence);
   if (options.minConfidence < 0 || options.minConfidence > 1) throw InputError("--min-confidence must be in [0, 1]");
   options.link.minSections = static_cast<int>(numberOption(args, "--min-sections", options.link.minSections));
   if (options.link.minSections < 1) throw InputError("--min-sections must be >= 1");

@@ -95,7 +95,7 @@ void bindExtraction(py::module_& m) {
         return py::make_tuple(py::cast(r.muscles), reportToDict(r.report));
       },
       py::arg("character"), py::arg("spacing") = 0.0, py::arg("vertex_mask") = py::none(),
-      py::arg("min_confidence") = 0.0, py::arg("min_sections") = 4, py::arg("max_per_region") = 0,
+      py::arg("min_confidence") = ExtractionOptions{}.minConfidence, py::arg("min_sections") = LinkOptions{}.minSections, py::arg("max_per_region") = 0,
       py::arg("forced_regions") = py::none(), py::arg("build_surfaces") = true,
       "Extract muscles from a character's skin (Yang & Zhang 2006). spacing: metres between cutting planes "
       "(0 = automatic); vertex_mask: #V booleans, extract only there; forced_regions: list of #V masks, one "

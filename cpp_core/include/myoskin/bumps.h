@@ -20,15 +20,16 @@ struct SectionTriangulation {
 SectionTriangulation triangulateSection(const Points2& polygon);
 
 struct BumpOptions {
-  double minProtrusion = 0.002;      // metres: a bump must stand this far out of its smooth base
-  double minRelativeProtrusion = 0.04;  // ... and this fraction of the section's mean radius
+  double minProtrusion = 0.0035;     // metres: a bump must stand this far out of its smooth base
+  double minRelativeProtrusion = 0.05;  // ... and this fraction of the section's mean radius
   double minWidthFraction = 0.04;    // bump arc length / section perimeter, at least
   double maxWidthFraction = 0.5;     // and at most
   double semicircleTolerance = 0.01;  // a vertex counts as inside the semicircle within this share of its radius
   bool absorbJunctions = true;  // a junction two of whose branches merged up to it joins them and merging goes
                                 // on (the chordal-axis pruning the paper cites); false = stop at every junction
                                 // (the paper's text literally: densely sampled sections then give tiny regions)
-  int baseHarmonics = 4;        // Fourier harmonics of the smooth base shape (radius vs angle)
+  int baseHarmonics = 2;        // Fourier harmonics of the smooth base shape (radius vs angle): 2 lets a
+                                // section be any smooth oval; more would absorb wide muscle bellies
 };
 
 // A bump: a run of consecutive polygon vertices (the skin arc over a muscle belly).

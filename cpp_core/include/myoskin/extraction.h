@@ -27,7 +27,7 @@ struct LinkOptions {
   double maxLateralFactor = 0.9;
   double maxAngle = 0.45;       // radians (~26 degrees)
   int maxGap = 2;               // sections that may be missing between two linked bumps
-  int minSections = 4;          // a muscle needs at least this many recognised sections
+  int minSections = 5;          // a muscle needs at least this many recognised sections
   bool branches = true;         // join merging/splitting chains with a transition section
   double mergeFactor = 0.5;     // fragments of one belly (chains of a family whose centres come within this
                                 // times their larger mean semi-axis a at the same or a neighbouring plane)
@@ -63,7 +63,7 @@ struct ExtractionOptions {
   std::vector<std::vector<char>> forcedRegions;  // one #V mask per forced muscle: the dominant bump inside
                                                  // the region is extracted even below significance
   double forcedMinProtrusion = 0.0005;         // metres: bumps weaker than this are not forced either
-  double minConfidence = 0.0;                  // drop muscles below this confidence (forced ones are kept)
+  double minConfidence = 0.6;                  // drop muscles below this confidence (forced ones are kept)
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
 };
 

@@ -185,6 +185,28 @@ double overlapShare(const detail::SectionPolygon& s, const Candidate& x, const C
   return static_cast<double>(shared) / (std::min(x.length, y.length) + 1);
 }
 
+// Hills of the residual: each local maximum spans from the lowest point before a higher residual on its
+// left to the same on its right (its key cols), so its prominence is measured over the whole section.
+std::vector<Candidate> hillCandidates(const detail::SectionPolygon& s, const Profile& pr) {
+  const int m = s.size();
+  const std::vector<double>& e = pr.residual;
+  std::vector<Candidate> out;
+  for (int i = 0; i < m; ++i) {
+    if (!(e[i] >= e[s.prev(i)] && e[i] > e[s.next(i)])) continue;
+    int lv = i, rv = i;
+    for (int j = s.prev(i), k = 0; k < m - 1 && e[j] <= e[i]; j = s.prev(j), ++k)
+      if (e[j] < e[lv]) lv = j;
+    for (int j = s.next(i), k = 0; k < m - 1 && e[j] <= e[i]; j = s.next(j), ++k)
+      if (e[j] < e[rv]) rv = j;
+    if (lv == i || rv == i || lv == rv) continue;
+    Candidate c = measureCandidate(s, pr, lv, rv);
+    c.apex = i;
+    c.protrusion = e[i] - std::max(e[lv], e[rv]);
+    out.push_back(c);
+  }
+  return out;
+}
+
 }  // namespace
 
 // ============================================================================
@@ -213,6 +235,22 @@ std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options,
     c.region = static_cast<int>(r);
     if (c.length < 2 || c.width < options.minWidthFraction || c.width > options.maxWidthFraction) continue;
     if (!(c.protrusion >= threshold) || !(c.protrusion > 0.0)) continue;
+    cands.push_back(c);
+  }
+  // Hills too: on densely sampled sections the semicircle rule stops early, before a region spans its hill.
+  // A hill candidate belongs to the smallest merged region that holds its apex (its terminal triangle).
+  for (Candidate c : hillCandidates(s, pr)) {
+    if (c.length < 2 || c.width < options.minWidthFraction || c.width > options.maxWidthFraction) continue;
+    if (!(c.protrusion >= threshold) || !(c.protrusion > 0.0)) continue;
+    int best = -1;
+    for (size_t r = 0; r < regions.size(); ++r) {
+      const int len = s.forward(regions[r].first, regions[r].last);
+      if (s.forward(regions[r].first, c.apex) <= len &&
+          (best < 0 || len < s.forward(regions[best].first, regions[best].last)))
+        best = static_cast<int>(r);
+    }
+    if (best < 0) continue;
+    c.region = best;
     cands.push_back(c);
   }
   std::stable_sort(cands.begin(), cands.end(),

@@ -74,7 +74,6 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
   if (arc.size() < 3) throw InputError("ellipse fit: the bump's arc has fewer than 3 points");
   std::vector<double> s(arc.size(), 0.0);
   for (size_t i = 1; i < arc.size(); ++i) s[i] = s[i - 1] + (arc[i] - arc[i - 1]).norm();
-  const double length = s.back();
   // Frame: u along the chord (first -> last), v outward (the polygon is counter-clockwise: outward = right
   // of the direction of travel, i.e. the chord rotated by -90 degrees).
   Vec2 u = arc.back() - arc.front();
@@ -82,6 +81,22 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
   u.normalize();
   const Vec2 v(u.y(), -u.x());
   const Vec2 apex = arc[apexAt];
+  // The belly: the run of the arc around the apex standing at least 35 % of the apex's height above the
+  // chord (wide, shallow flanks say little about the muscle under the bump).
+  std::vector<double> height(arc.size());
+  for (size_t i = 0; i < arc.size(); ++i) height[i] = (arc[i] - arc.front()).dot(v);
+  const double cut = 0.35 * height[apexAt];
+  size_t lo = apexAt, hi = apexAt;
+  while (lo > 0 && height[lo - 1] >= cut) --lo;
+  while (hi + 1 < arc.size() && height[hi + 1] >= cut) ++hi;
+  if (hi - lo >= 4) {
+    arc = std::vector<Vec2>(arc.begin() + lo, arc.begin() + hi + 1);
+    s = std::vector<double>(s.begin() + lo, s.begin() + hi + 1);
+    for (double& x : s) x -= s.front();
+    apexAt -= static_cast<int>(lo);
+  }
+  const double length = s.back();
+  const double coreHalf = 0.5 * (arc.back() - arc.front()).norm();
   // Weighted fit of x^2 + B y^2 + C x + D y + E = 0 in the (u, v) frame centred at the apex.
   const double sigma = std::max(0.3 * length, 1e-9);
   Eigen::MatrixXd A(arc.size(), 4);
@@ -106,15 +121,18 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
       if (au >= av) e.a = au, e.b = av, e.angle = std::atan2(u.y(), u.x());
       else e.a = av, e.b = au, e.angle = std::atan2(v.y(), v.x());
       // A sane fit: the centre lies below the apex, inside, and the ellipse is not larger than the section.
-      fitted = y0 < 0 && std::isfinite(e.a) && e.a < length && insidePolygon(polygon, e.center);
+      // The belly is about as deep as it is wide: a centre far deeper or an ellipse far wider than the
+      // belly is a poor fit of a nearly flat arc.
+      fitted = y0 < 0 && -y0 <= 1.5 * coreHalf && e.a <= 2.0 * coreHalf && std::isfinite(e.a) &&
+               insidePolygon(polygon, e.center);
     }
   }
   if (!fitted) {
     // Fallback: half the chord wide, as deep as the bump is high, centred beneath the apex.
-    const double half = 0.5 * (arc.back() - arc.front()).norm();
-    double height = 0.0;
-    for (const Vec2& p : arc) height = std::max(height, (p - arc.front()).dot(v));
-    const double b = std::clamp(height, 0.25 * half, half);
+    const double half = coreHalf;
+    double rise = 0.0;
+    for (const Vec2& p : arc) rise = std::max(rise, (p - arc.front()).dot(v));
+    const double b = std::clamp(rise, 0.5 * half, half);
     e.center = apex - b * v;
     e.a = std::max(half, b);
     e.b = std::min(half, b);
