@@ -1,8 +1,8 @@
 // Stage 3c: which merged regions are muscle bumps. The semicircle rule alone turns any smooth convex
 // section into a few large "bumps", so every merged region is measured against a smooth base shape:
-//  - base: a robust lower-envelope Fourier fit of radius vs angle around the area centroid (asymmetric
-//    least squares: points above the fit get a small weight), so an ellipse or any smooth, gently
-//    varying section is its own base and bumps stand out of it;
+//  - base: a robust lower-envelope Fourier fit of 1/radius^2 vs angle around the area centroid (asymmetric
+//    least squares: points above the base get a small weight); 1/r^2 of a centred ellipse has harmonics 0
+//    and 2 only, so an ellipse or any smooth, gently varying section is its own base and bumps stand out;
 //  - residual = radius - base, lightly smoothed along the polygon (about 1 % of the perimeter);
 //  - a region's apex is its highest residual; its protrusion is the apex's prominence inside the region:
 //    apex minus the higher of the lowest residuals on either side of it within the arc. A region that
@@ -93,6 +93,10 @@ Profile measureProfile(const detail::SectionPolygon& s, int harmonics) {
       basis(i, 2 * j) = sn;
     }
   }
+  // The series is fitted to 1 / r^2, which for any ellipse centred at the centroid is exactly
+  // cos^2/a^2 + sin^2/b^2 (harmonics 0 and 2): with 2 harmonics every such ellipse is its own base.
+  std::vector<double> q(m);
+  for (int i = 0; i < m; ++i) q[i] = 1.0 / std::max(r[i] * r[i], 1e-300);
   std::vector<double> base(m, 0.0);
   std::vector<char> above(m, 0);
   Eigen::MatrixXd normal(nb, nb);
@@ -104,13 +108,14 @@ Profile measureProfile(const detail::SectionPolygon& s, int harmonics) {
       const double w = span[i] * (above[i] ? kAboveWeight : 1.0);
       const auto row = basis.row(i);
       normal.selfadjointView<Eigen::Lower>().rankUpdate(row.transpose(), w);
-      rhs.noalias() += (w * r[i]) * row.transpose();
+      rhs.noalias() += (w * q[i]) * row.transpose();
     }
     normal.diagonal().array() += 1e-12 * normal(0, 0);
     const Eigen::VectorXd coef = normal.selfadjointView<Eigen::Lower>().ldlt().solve(rhs);
     bool changed = false;
     for (int i = 0; i < m; ++i) {
-      base[i] = basis.row(i).dot(coef);
+      const double fit = basis.row(i).dot(coef);
+      base[i] = fit > 0.0 ? 1.0 / std::sqrt(fit) : r[i];
       const char up = r[i] > base[i];
       changed |= up != above[i];
       above[i] = up;

@@ -1,0 +1,239 @@
+// Extraction stages 3-4: CDT of a section, triangle kinds, bumps (semicircle rule + significance) and the
+// ellipse under each bump; a fuzz test over hostile polygons.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include "myoskin/bumps.h"
+#include "myoskin/errors.h"
+
+using namespace myoskin;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// A limb section: circle of radius R (5 cm) with smooth bulges of height h (metres) and angular
+// half-width w (radians) at the given angles, sampled at n points counter-clockwise.
+Points2 bumpySection(const std::vector<double>& angles, double h = 0.006, double w = 0.45, int n = 160,
+                     double R = 0.05, double aspect = 1.0) {
+  Points2 p(n, 2);
+  for (int i = 0; i < n; ++i) {
+    const double t = 2 * kPi * i / n;
+    double r = R;
+    for (double a : angles) {
+      const double d = std::remainder(t - a, 2 * kPi);
+      if (std::abs(d) < w) r += h * std::pow(std::cos(0.5 * kPi * d / w), 2);
+    }
+    p(i, 0) = r * std::cos(t) * aspect;
+    p(i, 1) = r * std::sin(t);
+  }
+  return p;
+}
+
+double polygonArea(const Points2& p) {
+  double a = 0;
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    const Eigen::Index j = (i + 1) % p.rows();
+    a += 0.5 * (p(i, 0) * p(j, 1) - p(j, 0) * p(i, 1));
+  }
+  return a;
+}
+
+double apexAngle(const Points2& p, const Bump& b) { return std::atan2(p(b.apex, 1), p(b.apex, 0)); }
+
+bool inside(const Points2& poly, const Vec2& q) {
+  bool in = false;
+  for (Eigen::Index i = 0, j = poly.rows() - 1; i < poly.rows(); j = i++)
+    if ((poly(i, 1) > q.y()) != (poly(j, 1) > q.y()) &&
+        q.x() < (poly(j, 0) - poly(i, 0)) * (q.y() - poly(i, 1)) / (poly(j, 1) - poly(i, 1)) + poly(i, 0))
+      in = !in;
+  return in;
+}
+
+}  // namespace
+
+// ============================================================================
+// Triangulation
+// ============================================================================
+
+TEST(SectionCdt, CoversThePolygonWithKinds) {
+  const Points2 p = bumpySection({0.3, 2.0});
+  const SectionTriangulation t = triangulateSection(p);
+  ASSERT_EQ(t.triangles.rows(), p.rows() - 2);  // a simple polygon with n vertices: n - 2 triangles
+  double area = 0;
+  int boundaryEdges = 0;
+  for (Eigen::Index f = 0; f < t.triangles.rows(); ++f) {
+    Points2 tri(3, 2);
+    for (int k = 0; k < 3; ++k) tri.row(k) = p.row(t.triangles(f, k));
+    EXPECT_GT(polygonArea(tri), 0.0);  // counter-clockwise
+    area += polygonArea(tri);
+    int kind = 0;
+    for (int k = 0; k < 3; ++k) {
+      const int a = t.triangles(f, k), b = t.triangles(f, (k + 1) % 3);
+      kind += (b == (a + 1) % p.rows()) || (a == (b + 1) % p.rows());
+    }
+    EXPECT_EQ(kind, static_cast<int>(t.kinds[f]));
+    boundaryEdges += kind;
+  }
+  EXPECT_NEAR(area, polygonArea(p), 1e-12 * polygonArea(p));
+  EXPECT_EQ(boundaryEdges, p.rows());
+  int terminals = 0;
+  for (TriangleKind k : t.kinds) terminals += k == TriangleKind::Terminal;
+  EXPECT_GE(terminals, 2);
+}
+
+// ============================================================================
+// Bumps
+// ============================================================================
+
+TEST(Bumps, SmoothSectionsGiveNone) {
+  EXPECT_TRUE(findBumps(bumpySection({})).empty());                             // circle
+  EXPECT_TRUE(findBumps(bumpySection({}, 0, 0.4, 160, 0.05, 1.6)).empty());     // ellipse 1.6 : 1
+  Points2 wobble(200, 2);  // a smooth oval with a gentle second-order wobble
+  for (int i = 0; i < 200; ++i) {
+    const double t = 2 * kPi * i / 200, r = 0.05 * (1 + 0.08 * std::cos(2 * t) + 0.02 * std::sin(t));
+    wobble.row(i) << r * std::cos(t), r * std::sin(t);
+  }
+  EXPECT_TRUE(findBumps(wobble).empty());
+}
+
+TEST(Bumps, OneTwoThreeBulgesAtTheirAngles) {
+  const std::vector<std::vector<double>> cases = {{1.0}, {0.5, 2.6}, {0.0, 2.1, 4.2}};
+  for (const auto& angles : cases) {
+    const Points2 p = bumpySection(angles);
+    const std::vector<Bump> bumps = findBumps(p);
+    ASSERT_EQ(bumps.size(), angles.size()) << angles.size() << " bulges";
+    for (double a : angles) {
+      double best = 1e9;
+      for (const Bump& b : bumps) best = std::min(best, std::abs(std::remainder(apexAngle(p, b) - a, 2 * kPi)));
+      EXPECT_LT(best, 15 * kPi / 180) << "bulge at " << a;
+    }
+    for (const Bump& b : bumps) {
+      EXPECT_GE(b.significance, 1.0);
+      EXPECT_GT(b.protrusion, 0.003);
+      EXPECT_GE(b.terminalTriangle, 0);
+    }
+  }
+}
+
+TEST(Bumps, InvariantUnderStartIndexScaleAndRigidMotion) {
+  const Points2 p = bumpySection({0.4, 2.5}, 0.007);
+  const size_t count = findBumps(p).size();
+  ASSERT_EQ(count, 2u);
+  for (int shift : {1, 37, 101}) {
+    Points2 q(p.rows(), 2);
+    for (Eigen::Index i = 0; i < p.rows(); ++i) q.row(i) = p.row((i + shift) % p.rows());
+    EXPECT_EQ(findBumps(q).size(), count) << shift;
+  }
+  const double c = std::cos(0.7), s = std::sin(0.7);
+  Points2 moved(p.rows(), 2);
+  for (Eigen::Index i = 0; i < p.rows(); ++i) moved.row(i) << c * p(i, 0) - s * p(i, 1) + 3.0, s * p(i, 0) + c * p(i, 1) - 1.0;
+  EXPECT_EQ(findBumps(moved).size(), count);
+  Points2 big = 2.0 * p;  // relative thresholds scale; the absolute one only lowers the bar
+  EXPECT_EQ(findBumps(big).size(), count);
+  // Clockwise input is handled (same bumps).
+  Points2 cw = p.colwise().reverse();
+  EXPECT_EQ(findBumps(cw).size(), count);
+  // Deterministic.
+  const auto a = findBumps(p), b = findBumps(p);
+  for (size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(a[i].first == b[i].first && a[i].last == b[i].last && a[i].apex == b[i].apex);
+}
+
+// ============================================================================
+// Ellipses
+// ============================================================================
+
+TEST(BumpEllipse, UnderTheSkinNearTheBelly) {
+  // A limb disc (R = 5 cm) united with a muscle disc of radius r centred at distance d: the ellipse under
+  // the bump should sit near the muscle disc.
+  const double R = 0.05, r = 0.02, d = 0.045, angle = 0.8;
+  const Vec2 m(d * std::cos(angle), d * std::sin(angle));
+  Points2 p(240, 2);
+  for (int i = 0; i < 240; ++i) {
+    const double t = 2 * kPi * i / 240;
+    const Vec2 dir(std::cos(t), std::sin(t));
+    // Radius of the union along dir: max of the limb circle and the muscle circle's far intersection.
+    double rad = R;
+    const double bproj = m.dot(dir), disc = bproj * bproj - (m.squaredNorm() - r * r);
+    if (disc >= 0) rad = std::max(rad, bproj + std::sqrt(disc));
+    p.row(i) = rad * dir.transpose();
+  }
+  const SectionTriangulation t = triangulateSection(p);
+  const auto bumps = findBumps(p, {}, &t);
+  ASSERT_EQ(bumps.size(), 1u);
+  const Ellipse2 e = fitBumpEllipse(p, bumps[0], t);
+  const double centreError = (e.center - m).norm() / r, radiusError = std::abs(std::sqrt(e.a * e.b) - r) / r;
+  std::printf("ellipse: centre error %.2f r, mean radius error %.0f %%, a %.4f b %.4f\n", centreError,
+              100 * radiusError, e.a, e.b);
+  EXPECT_LT(centreError, 0.6);
+  EXPECT_LT(radiusError, 0.5);
+  EXPECT_GE(e.a, e.b);
+  EXPECT_GT(e.b, 0.0);
+  for (int k = 0; k < 64; ++k) {  // beneath the skin
+    const double s = 2 * kPi * k / 64;
+    const Vec2 q = e.center + e.a * std::cos(s) * Vec2(std::cos(e.angle), std::sin(e.angle)) +
+                   e.b * std::sin(s) * Vec2(-std::sin(e.angle), std::cos(e.angle));
+    EXPECT_TRUE(inside(p, q)) << k;
+  }
+}
+
+TEST(BumpStage, SpeedPerSection) {
+  const Points2 p = bumpySection({0.3, 1.9, 4.0}, 0.006, 0.45, 200);
+  const auto t0 = std::chrono::steady_clock::now();
+  int n = 0;
+  for (int rep = 0; rep < 50; ++rep) {
+    const SectionTriangulation t = triangulateSection(p);
+    for (const Bump& b : findBumps(p, {}, &t)) n += fitBumpEllipse(p, b, t).a > 0;
+  }
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / 50;
+  std::printf("200-point section: %.3f ms for triangulation + bumps + ellipses (%d ellipses per run)\n", ms, n / 50);
+  EXPECT_EQ(n, 150);
+}
+
+// ============================================================================
+// Fuzz: hostile polygons never crash, never escape as anything but InputError, never give NaN
+// ============================================================================
+
+TEST(BumpStage, FuzzHostilePolygons) {
+  std::mt19937 rng(12345);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int valid = 0, rejected = 0, bumpsSeen = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    const int kind = trial % 7;
+    const int n = 3 + static_cast<int>(u(rng) * 120);
+    Points2 p(n, 2);
+    const double scale = std::pow(10.0, -6 + 10 * u(rng));
+    for (int i = 0; i < n; ++i) {
+      const double t = 2 * kPi * i / n;
+      const double r = scale * (0.5 + u(rng));
+      p.row(i) << r * std::cos(t), r * std::sin(t);  // random star-shaped
+    }
+    if (kind == 1) p.row(n / 2) = p.row(0);                                     // self-touching
+    if (kind == 2) for (int i = 0; i < n / 2; ++i) p.row(i) << scale * i, 0.0;  // collinear run
+    if (kind == 3 && n > 3) p.row(1) = p.row(0);                                // duplicate consecutive
+    if (kind == 4) for (int i = 0; i < n; ++i) p.row(i) << u(rng) * scale, u(rng) * scale;  // random mess
+    if (kind == 5) p(static_cast<int>(u(rng) * n), 0) = std::nan("");           // NaN
+    if (kind == 6) p.setZero();                                                 // degenerate
+    try {
+      const SectionTriangulation t = triangulateSection(p);
+      for (const Bump& b : findBumps(p, {}, &t)) {
+        const Ellipse2 e = fitBumpEllipse(p, b, t);
+        ASSERT_TRUE(std::isfinite(e.center.x()) && std::isfinite(e.center.y()) && std::isfinite(e.a) && std::isfinite(e.b));
+        ++bumpsSeen;
+      }
+      ++valid;
+    } catch (const InputError& e) {
+      EXPECT_GT(std::string(e.what()).size(), 10u);
+      ++rejected;
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "trial " << trial << " (kind " << kind << "): " << e.what();
+    }
+  }
+  std::printf("fuzz: %d valid, %d rejected with InputError, %d bumps fitted\n", valid, rejected, bumpsSeen);
+  EXPECT_GT(valid, 1000);
+  EXPECT_GT(rejected, 500);
+}

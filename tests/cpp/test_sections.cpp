@@ -1,0 +1,262 @@
+// Extraction stages 1-2: bone roles, cutting-plane families and profile sections.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+#include "myoskin/errors.h"
+#include "myoskin/io.h"
+#include "myoskin/sections.h"
+#include "myoskin/synthetic_character.h"
+#include "test_support.h"
+
+using namespace myoskin;
+
+namespace {
+
+// A chain skeleton with the given names (each bone 0.2 m along -Z from the previous; parents = previous
+// unless `parents` says otherwise).
+Skeleton namedSkeleton(const std::vector<std::string>& names, const std::vector<int>& parents) {
+  Skeleton sk;
+  for (size_t i = 0; i < names.size(); ++i) {
+    Bone b;
+    b.name = names[i];
+    b.parent = parents[i];
+    b.head = b.parent >= 0 ? sk.bones[b.parent].tail : Vec3::Zero();
+    b.tail = b.head + Vec3(0.05 * (i % 3), 0.0, -0.2);
+    b.rest = boneMatrix(b.head, b.tail, Vec3::UnitX());
+    sk.bones.push_back(b);
+  }
+  return sk;
+}
+
+std::map<std::string, BoneRole> rolesByName(const Skeleton& sk, const std::vector<BoneRole>& roles) {
+  std::map<std::string, BoneRole> m;
+  for (int i = 0; i < sk.numBones(); ++i) m[sk.bones[i].name] = roles[i];
+  return m;
+}
+
+double signedArea(const Points2& p) {
+  double a = 0;
+  for (Eigen::Index i = 0; i < p.rows(); ++i) {
+    const Eigen::Index j = (i + 1) % p.rows();
+    a += 0.5 * (p(i, 0) * p(j, 1) - p(j, 0) * p(i, 1));
+  }
+  return a;
+}
+
+}  // namespace
+
+// ============================================================================
+// Roles
+// ============================================================================
+
+TEST(BoneRoles, SyntheticArmByName) {
+  const Character c = makeSyntheticArm().character;
+  const auto r = rolesByName(c.skeleton, classifyBones(c.skeleton));
+  EXPECT_EQ(r.at("clavicle"), BoneRole::Shoulder);
+  EXPECT_EQ(r.at("upper_arm"), BoneRole::Limb);
+  EXPECT_EQ(r.at("forearm"), BoneRole::Limb);
+  EXPECT_EQ(r.at("hand"), BoneRole::Ignore);
+}
+
+TEST(BoneRoles, MixamoAndRigifyNamesAndOverrides) {
+  const Skeleton mixamo = namedSkeleton(
+      {"mixamorig:Hips", "mixamorig:Spine", "mixamorig:Spine1", "mixamorig:Neck", "mixamorig:Head",
+       "mixamorig:LeftShoulder", "mixamorig:LeftArm", "mixamorig:LeftForeArm", "mixamorig:LeftHand",
+       "mixamorig:LeftHandIndex1", "mixamorig:LeftUpLeg", "mixamorig:LeftLeg", "mixamorig:LeftFoot"},
+      {-1, 0, 1, 2, 3, 2, 5, 6, 7, 8, 0, 10, 11});
+  auto r = rolesByName(mixamo, classifyBones(mixamo));
+  EXPECT_EQ(r["mixamorig:Hips"], BoneRole::Pelvis);
+  EXPECT_EQ(r["mixamorig:Spine1"], BoneRole::Spine);
+  EXPECT_EQ(r["mixamorig:Neck"], BoneRole::Neck);
+  EXPECT_EQ(r["mixamorig:Head"], BoneRole::Ignore);
+  EXPECT_EQ(r["mixamorig:LeftShoulder"], BoneRole::Shoulder);
+  EXPECT_EQ(r["mixamorig:LeftArm"], BoneRole::Limb);
+  EXPECT_EQ(r["mixamorig:LeftForeArm"], BoneRole::Limb);
+  EXPECT_EQ(r["mixamorig:LeftHandIndex1"], BoneRole::Ignore);
+  EXPECT_EQ(r["mixamorig:LeftUpLeg"], BoneRole::Limb);
+  EXPECT_EQ(r["mixamorig:LeftFoot"], BoneRole::Ignore);
+
+  const Skeleton rigify = namedSkeleton({"DEF-spine", "DEF-spine.001", "DEF-upper_arm.L", "DEF-forearm.L",
+                                         "DEF-hand.L", "DEF-thigh.L", "DEF-shin.L"},
+                                        {-1, 0, 1, 2, 3, 0, 5});
+  r = rolesByName(rigify, classifyBones(rigify));
+  EXPECT_EQ(r["DEF-spine"], BoneRole::Spine);
+  EXPECT_EQ(r["DEF-upper_arm.L"], BoneRole::Limb);
+  EXPECT_EQ(r["DEF-forearm.L"], BoneRole::Limb);
+  EXPECT_EQ(r["DEF-hand.L"], BoneRole::Ignore);
+  EXPECT_EQ(r["DEF-shin.L"], BoneRole::Limb);
+
+  r = rolesByName(rigify, classifyBones(rigify, {{"DEF-hand.L", BoneRole::Limb}, {"DEF-shin.L", BoneRole::Ignore}}));
+  EXPECT_EQ(r["DEF-hand.L"], BoneRole::Limb);
+  EXPECT_EQ(r["DEF-shin.L"], BoneRole::Ignore);
+  EXPECT_THROW(classifyBones(rigify, {{"nope", BoneRole::Limb}}), InputError);
+  EXPECT_EQ(boneRoleFromName(boneRoleName(BoneRole::Neck)), BoneRole::Neck);
+  EXPECT_THROW(boneRoleFromName("elbowish"), InputError);
+}
+
+TEST(BoneRoles, SharedRigs) {
+  const std::string mh = test::sharedPath("characters/makehuman_muscular_male/makehuman_muscular_male.glb");
+  const std::string lp = test::sharedPath("characters/godot_male_base_mesh_lowpoly/male_base_mesh.glb");
+  MYOSKIN_REQUIRE_SHARED(mh);
+  MYOSKIN_REQUIRE_SHARED(lp);
+  const Character c = loadCharacter(mh);
+  auto r = rolesByName(c.skeleton, classifyBones(c.skeleton));
+  for (const char* limb : {"upperarm01.L", "upperarm02.R", "lowerarm01.L", "upperleg01.R", "lowerleg02.L"})
+    EXPECT_EQ(r.at(limb), BoneRole::Limb) << limb;
+  EXPECT_EQ(r.at("spine03"), BoneRole::Spine);
+  EXPECT_EQ(r.at("neck02"), BoneRole::Neck);
+  EXPECT_EQ(r.at("clavicle.L"), BoneRole::Shoulder);
+  EXPECT_EQ(r.at("finger2-2.L"), BoneRole::Ignore);
+  EXPECT_EQ(r.at("toe1-1.R"), BoneRole::Ignore);
+  EXPECT_EQ(r.at("jaw"), BoneRole::Ignore);
+  const Character l = loadCharacter(lp);
+  r = rolesByName(l.skeleton, classifyBones(l.skeleton));
+  EXPECT_EQ(r.at("upper_arm.L"), BoneRole::Limb);
+  EXPECT_EQ(r.at("shin.R"), BoneRole::Limb);
+  EXPECT_EQ(r.at("shoulder.L"), BoneRole::Shoulder);
+  EXPECT_EQ(r.at("spine.001"), BoneRole::Spine);
+  EXPECT_EQ(r.at("f_index.01.L"), BoneRole::Ignore);
+}
+
+// ============================================================================
+// Planes and profiles on the synthetic arm
+// ============================================================================
+
+TEST(CuttingPlanes, PerpendicularEvenAndNonFlipping) {
+  const Character c = makeSyntheticArm().character;
+  PlaneOptions o;
+  o.spacing = 0.01;
+  const auto planes = makeCuttingPlanes(c, classifyBones(c.skeleton), o);
+  ASSERT_GT(planes.size(), 40u);
+  const CuttingPlane* prev = nullptr;
+  for (const CuttingPlane& p : planes) {
+    if (p.family != "limb") continue;
+    const Bone& b = c.skeleton.bones[p.bone];
+    EXPECT_NEAR(p.normal.dot((b.tail - b.head).normalized()), 1.0, 1e-12);
+    EXPECT_NEAR(p.xAxis.cross(p.yAxis).dot(p.normal), 1.0, 1e-12);  // right-handed, unit
+    EXPECT_NEAR(p.xAxis.dot(p.normal), 0.0, 1e-12);
+    if (prev) {
+      EXPECT_EQ(p.order, prev->order + 1);
+      EXPECT_GT(p.xAxis.dot(prev->xAxis), 0.99);  // no flips
+      const double gap = (p.origin - prev->origin).norm();
+      EXPECT_TRUE(std::abs(gap - 0.01) < 1e-9 || gap > 0.015) << gap;  // even, or a margin skipped
+    }
+    prev = &p;
+  }
+  PlaneOptions bad;
+  bad.spacing = -1;
+  EXPECT_THROW(makeCuttingPlanes(c, classifyBones(c.skeleton), bad), InputError);
+}
+
+TEST(CutSections, SyntheticArmLoopsLieOnTheSkin) {
+  const SyntheticCharacter arm = makeSyntheticArm();
+  const Character& c = arm.character;
+  const auto planes = makeCuttingPlanes(c, classifyBones(c.skeleton));
+  const auto profiles = cutSections(c, planes);
+  int ok = 0;
+  for (const SectionProfile& s : profiles) {
+    if (!s.ok) continue;
+    ++ok;
+    const Points2& p = s.polygon;
+    EXPECT_GT(signedArea(p), 0.0);  // counter-clockwise
+    double lo = 1e9, hi = 0;
+    for (Eigen::Index i = 0; i < p.rows(); ++i) {
+      const double d = (p.row((i + 1) % p.rows()) - p.row(i)).norm();
+      lo = std::min(lo, d), hi = std::max(hi, d);
+      // Back in 3D the point is on the plane, and on the skin: its distance to the arm axis matches the
+      // skin's radius range (the arm runs along X).
+      const Vec3 q = s.plane.origin + p(i, 0) * s.plane.xAxis + p(i, 1) * s.plane.yAxis;
+      EXPECT_NEAR((q - s.plane.origin).dot(s.plane.normal), 0.0, 1e-12);
+      EXPECT_GT(std::hypot(q.y(), q.z()), 0.02);
+      EXPECT_LT(std::hypot(q.y(), q.z()), 0.12);
+    }
+    EXPECT_LT(hi / lo, 1.5) << "uneven resampling";
+    EXPECT_EQ(s.inMask.size(), static_cast<size_t>(p.rows()));
+  }
+  EXPECT_GE(ok, static_cast<int>(0.9 * profiles.size()));
+  // Determinism.
+  const auto again = cutSections(c, planes);
+  for (size_t i = 0; i < profiles.size(); ++i) EXPECT_TRUE(profiles[i].polygon == again[i].polygon);
+}
+
+TEST(CutSections, PlaneOutsideTheSkinIsSkippedWithAReason) {
+  const Character c = makeSyntheticArm().character;
+  CuttingPlane far;
+  far.bone = 1;
+  far.origin = Vec3(5, 5, 5);
+  far.normal = Vec3::UnitX();
+  far.xAxis = Vec3::UnitY();
+  far.yAxis = Vec3::UnitZ();
+  CuttingPlane beside = far;
+  beside.origin = Vec3(0.3, 0.5, 0.0);  // cuts the arm, but the loop does not enclose this point
+  const auto s = cutSections(c, {far, beside});
+  for (const SectionProfile& p : s) {
+    EXPECT_FALSE(p.ok);
+    EXPECT_NE(p.skipReason.find("no skin loop"), std::string::npos) << p.skipReason;
+    EXPECT_EQ(p.polygon.rows(), 0);
+  }
+  const std::vector<char> wrong(3, 1);
+  EXPECT_THROW(cutSections(c, {far}, {}, &wrong), InputError);
+}
+
+TEST(CutSections, VertexMaskMarksPointsAndSkipsSectionsOutside) {
+  const Character c = makeSyntheticArm().character;
+  const auto planes = makeCuttingPlanes(c, classifyBones(c.skeleton));
+  std::vector<char> mask(c.mesh.numVertices());
+  for (int v = 0; v < c.mesh.numVertices(); ++v) mask[v] = c.mesh.vertices(v, 0) > 0.5 && c.mesh.vertices(v, 2) > 0;
+  const auto s = cutSections(c, planes, {}, &mask);
+  for (const SectionProfile& p : s) {
+    if (p.plane.origin.x() < 0.45) EXPECT_FALSE(p.ok) << p.plane.origin.x();
+    if (!p.ok) continue;
+    for (Eigen::Index i = 0; i < p.polygon.rows(); ++i) {
+      const Vec3 q = p.plane.origin + p.polygon(i, 0) * p.plane.xAxis + p.polygon(i, 1) * p.plane.yAxis;
+      if (q.z() < -0.01) EXPECT_FALSE(p.inMask[i]);
+    }
+  }
+}
+
+// ============================================================================
+// MakeHuman: every family, left/right mirrored
+// ============================================================================
+
+TEST(CutSections, MakeHumanFamiliesAndMirroredLimbs) {
+  const std::string path = test::sharedPath("characters/makehuman_muscular_male/makehuman_muscular_male.glb");
+  MYOSKIN_REQUIRE_SHARED(path);
+  const Character c = loadCharacter(path);
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto planes = makeCuttingPlanes(c, classifyBones(c.skeleton));
+  const auto profiles = cutSections(c, planes);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::map<std::string, std::pair<int, int>> perFamily;  // ok, total
+  std::map<std::string, std::vector<double>> areaByBone;
+  for (const SectionProfile& s : profiles) {
+    auto& f = perFamily[s.plane.family];
+    f.second++;
+    if (!s.ok) continue;
+    f.first++;
+    areaByBone[c.skeleton.bones[s.plane.bone].name].push_back(signedArea(s.polygon));
+  }
+  for (const auto& [family, n] : perFamily) std::printf("  %-8s %3d of %3d sections ok\n", family.c_str(), n.first, n.second);
+  std::printf("  planes + sections: %.3f s\n", seconds);
+  for (const char* f : {"limb", "abdomen", "neck", "shoulder"}) EXPECT_GT(perFamily[f].second, 0) << f;
+  EXPECT_GE(perFamily["limb"].first, 0.75 * perFamily["limb"].second);
+  EXPECT_GE(perFamily["abdomen"].first, 0.5 * perFamily["abdomen"].second);
+  // Mirrored limbs: same number of ok sections and areas within 2 %.
+  for (const char* bone : {"upperarm02", "lowerarm01", "lowerarm02", "upperleg02", "lowerleg01", "lowerleg02"}) {
+    const auto& l = areaByBone[std::string(bone) + ".L"];
+    const auto& r = areaByBone[std::string(bone) + ".R"];
+    ASSERT_EQ(l.size(), r.size()) << bone;
+    ASSERT_GT(l.size(), 0u) << bone;
+    for (size_t i = 0; i < l.size(); ++i) EXPECT_NEAR(l[i], r[i], 0.02 * l[i]) << bone << " " << i;
+  }
+  // Abdomen loops exclude the arms: narrower than the shoulders.
+  for (const SectionProfile& s : profiles)
+    if (s.ok && s.plane.family == "abdomen") {
+      const double width = s.polygon.col(0).maxCoeff() - s.polygon.col(0).minCoeff();
+      EXPECT_LT(std::abs(width), 0.6);
+    }
+}
