@@ -408,8 +408,8 @@ TEST(Measured, SyntheticArmRecallPrecision) {
     for (size_t t = 0; t < arm.muscles.size(); ++t)
       if (acc.matchOfTrue[t] < 0) std::printf("  missed true muscle %s (%s)\n", arm.muscles[t].name.c_str(), arm.muscles[t].bone.c_str());
     // Issue 3's target is recall and precision >= 0.9; the bump stage does not reach it yet (see the
-    // issue notes). Until then this guards what works: true muscles are found on every seed.
-    EXPECT_GE(acc.matched, 1) << "seed " << seed;
+    // issue notes). Until then this guards what works (measured 0.67-0.83 per seed).
+    EXPECT_GE(acc.matched, 3) << "seed " << seed;
     recallSum += acc.recall;
     precisionSum += acc.precision;
     for (const Muscle& m : r.muscles) {
@@ -420,8 +420,8 @@ TEST(Measured, SyntheticArmRecallPrecision) {
     EXPECT_NO_THROW(validateMuscles(r.muscles));
   }
   std::printf("mean over seeds 0-3: recall %.3f precision %.3f (target 0.9 / 0.9)\n", recallSum / 4, precisionSum / 4);
-  EXPECT_GE(recallSum / 4, 0.15);
-  EXPECT_GE(precisionSum / 4, 0.15);
+  EXPECT_GE(recallSum / 4, 0.65);
+  EXPECT_GE(precisionSum / 4, 0.65);
 }
 
 TEST(Measured, SmoothArmHasNoMuscles) {

@@ -12,6 +12,8 @@ namespace myoskin {
 
 namespace {
 
+constexpr double kMaxAspect = 1.2;  // a : b of a fitted belly at most
+
 // ============================================================================
 // Helpers
 // ============================================================================
@@ -137,6 +139,15 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
     e.a = std::max(half, b);
     e.b = std::min(half, b);
     e.angle = half >= b ? std::atan2(u.y(), u.x()) : std::atan2(v.y(), v.x());
+  }
+  // Muscle bellies are round-ish in section: a flatter fit (a shallow arc) is made at most maxAspect : 1
+  // by deepening it, keeping its top where it touches the skin.
+  if (e.b * kMaxAspect < e.a) {
+    const Vec2 axisB(-std::sin(e.angle), std::cos(e.angle));
+    const Vec2 out = axisB.dot(v) >= 0 ? axisB : Vec2(-axisB);
+    const double grow = e.a / kMaxAspect - e.b;
+    e.center -= grow * out;
+    e.b += grow;
   }
   // Under the skin: shrink about the centre (and pull the centre inward) until the ellipse is inside.
   const double gap = 0.02 * e.b;

@@ -157,9 +157,13 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
           }
         }
       }
+      // A muscle lies beside the bone, not around it: an ellipse centred within a quarter of the section's
+      // mean radius of the bone describes the whole section, not a belly.
+      const double meanRadius = prof.polygon.rowwise().norm().mean();
       for (size_t b = 0; b < bumps.size(); ++b) {
         const Ellipse2 e = fitBumpEllipse(prof.polygon, bumps[b], tri);
         if (!std::isfinite(e.center.x()) || !std::isfinite(e.center.y()) || !(e.a > 0) || !(e.b > 0)) continue;
+        if (e.center.norm() < 0.25 * meanRadius && forced[b] < 0) continue;
         w.ellipses.push_back(e);
         w.significance.push_back(bumps[b].significance);
         w.forcedRegion.push_back(forced[b]);
