@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <map>
 
+#include "myoskin/errors.h"
 #include "myoskin/extraction.h"
 #include "myoskin/io.h"
 #include "myoskin/synthetic_character.h"
@@ -539,4 +540,61 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
   EXPECT_GE(left["arm"], 1);
   EXPECT_GE(right["arm"], 1);
   EXPECT_GE(left["leg"] + right["leg"], 1);
+}
+
+// ============================================================================
+// Bad input: holes, a skeleton outside the skin, zero-length bones, NaNs
+// ============================================================================
+
+TEST(ExtractionInput, OpenMeshSkipsSectionsThroughTheHoleWithAReason) {
+  SyntheticCharacter arm = makeSyntheticArm();
+  Mesh& m = arm.character.mesh;
+  // Cut a hole: drop the triangles with a vertex in a band of the forearm's upper side.
+  std::vector<int> keep;
+  for (int f = 0; f < m.numTriangles(); ++f) {
+    bool inBand = false;
+    for (int k = 0; k < 3; ++k)
+      inBand |= std::abs(m.vertices(m.triangles(f, k), 0) - 0.58) < 0.01 && m.vertices(m.triangles(f, k), 2) > 0;
+    if (!inBand) keep.push_back(f);
+  }
+  Triangles kept(static_cast<Eigen::Index>(keep.size()), 3);
+  for (size_t i = 0; i < keep.size(); ++i) kept.row(i) = m.triangles.row(keep[i]);
+  m.triangles = kept;
+  ASSERT_FALSE(analyzeTopology(m).closed());
+  const ExtractionResult r = extractMuscles(arm.character);
+  int open = 0;
+  for (const SkippedSection& s : r.report.skipped) open += s.reason.find("open") != std::string::npos;
+  EXPECT_GE(open, 1);
+  EXPECT_NO_THROW(validateMuscles(r.muscles));
+}
+
+TEST(ExtractionInput, SkeletonOutsideTheSkinFindsNothingAndSaysWhy) {
+  SyntheticCharacter arm = makeSyntheticArm();
+  for (Bone& b : arm.character.skeleton.bones) {
+    b.head.y() += 1.0;
+    b.tail.y() += 1.0;
+    b.rest(1, 3) += 1.0;
+  }
+  const ExtractionResult r = extractMuscles(arm.character);
+  EXPECT_TRUE(r.muscles.empty());
+  ASSERT_EQ(static_cast<int>(r.report.skipped.size()), r.report.planes);
+  for (const SkippedSection& s : r.report.skipped) EXPECT_NE(s.reason.find("no skin loop"), std::string::npos) << s.reason;
+}
+
+TEST(ExtractionInput, ZeroLengthBonesAndNaNsAreClearErrors) {
+  SyntheticCharacter arm = makeSyntheticArm();
+  Character c = arm.character;
+  c.skeleton.bones[2].tail = c.skeleton.bones[2].head;
+  try {
+    extractMuscles(c);
+    ADD_FAILURE() << "a zero-length bone must be rejected";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("forearm"), std::string::npos) << e.what();
+  }
+  c = arm.character;
+  c.mesh.vertices(10, 1) = std::nan("");
+  EXPECT_THROW(extractMuscles(c), InputError);
+  ExtractionOptions o;
+  o.vertexMask.assign(5, 1);
+  EXPECT_THROW(extractMuscles(arm.character, o), InputError);
 }
