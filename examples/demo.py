@@ -7,7 +7,7 @@
 Writes to DIR:
     myoskin_demo.blend   the rig, the skin (vertex groups + linear Armature modifier) and the muscles;
                          frame 1 = rest, frame 2 = elbow bent ~90 degrees
-    muscles.json         the muscles (format myoskin.muscles, version 1)
+    muscles.json         the muscles extracted from the skin (format myoskin.muscles, version 1)
     truth.json           the generator's ground-truth muscles (centre lines and radii)
     render_rest.png      Cycles render, muscles (red) under a translucent skin, rest pose
     render_posed.png     the same with the elbow bent
@@ -90,15 +90,23 @@ def main():
     scene = bpy.context.scene
     arm_obj, mesh_obj = blender_io.character_to_blender(character, "SyntheticArm")
     mesh_obj.data.materials.append(skin_material())
-    tubes = blender_io.truth_to_curves(truth, material=muscle_material(), armature_obj=arm_obj)
     arm_obj.hide_render = True
-    log(f"built {arm_obj.name} ({len(arm_obj.data.bones)} bones), {mesh_obj.name} "
-        f"({len(mesh_obj.data.vertices)} vertices), {len(tubes)} muscle tubes")
+    # The ground truth as tubes, kept in the .blend for comparison (hidden in the renders).
+    tubes = blender_io.truth_to_curves(truth, armature_obj=arm_obj)
+    for tube in tubes:
+        tube.hide_render = True
 
-    # The muscles. For now these are the generator's ground truth converted to Muscle objects; when
-    # extraction lands this becomes the muscles extracted from the skin (core.extract_muscles).
-    muscles = truth_mod.muscles_from_truth(truth, character, joints=prefs.joints_per_muscle,
-                                           bulge=prefs.bulge_factor)
+    # The muscles extracted from the skin (Yang & Zhang's pipeline in the core).
+    muscles, report = core.extract_muscles(character, spacing=prefs.section_spacing,
+                                            min_sections=prefs.min_sections)
+    for m in muscles:
+        m.joints, m.bulge = prefs.joints_per_muscle, prefs.bulge_factor
+    accuracy = core.measure_extraction(muscles, truth)
+    log(f"extracted {len(muscles)} muscles in {sum(report['timings'].values()):.3f} s: recall "
+        f"{accuracy['recall']:.2f}, precision {accuracy['precision']:.2f} against the {len(truth)} true ones")
+    shapes = blender_io.muscles_to_meshes(muscles, material=muscle_material(), armature_obj=arm_obj)
+    log(f"built {arm_obj.name} ({len(arm_obj.data.bones)} bones), {mesh_obj.name} "
+        f"({len(mesh_obj.data.vertices)} vertices), {len(shapes)} muscle meshes, {len(tubes)} truth tubes")
     core.write_muscles(os.path.join(out, "muscles.json"), muscles)
     with open(os.path.join(out, "truth.json"), "w", encoding="utf-8") as f:
         json.dump(truth_mod.truth_to_json_dict(truth), f, indent=1)

@@ -390,3 +390,27 @@ def truth_to_curves(truth, collection=None, material=None, armature_obj=None, pr
             parent_to_bone(obj, armature_obj, muscle["bone"])
         objects.append(obj)
     return objects
+
+
+def muscles_to_meshes(muscles, collection=None, material=None, armature_obj=None, prefix=""):
+    """One mesh object per core Muscle from its lofted surface (surface_vertices #V by 3 in the character's
+    mesh space, surface_triangles #F by 3). With armature_obj, positions are taken in the armature's space
+    and each muscle is parented to its origin bone (rigid display until muscle deformation drives it)."""
+    collection = collection or bpy.context.scene.collection
+    to_world = _matrix_to_numpy(armature_obj.matrix_world) if armature_obj is not None else np.eye(4)
+    objects = []
+    for muscle in muscles:
+        vertices = np.asarray(muscle.surface_vertices, dtype=np.float64)
+        if len(vertices) == 0:
+            continue
+        mesh = _new_mesh(prefix + muscle.name, _transform_points(to_world, vertices), muscle.surface_triangles)
+        if material is not None:
+            mesh.materials.append(material)
+        obj = bpy.data.objects.new(prefix + muscle.name, mesh)
+        obj["myoskin_region"] = muscle.region
+        obj["myoskin_confidence"] = float(muscle.confidence)
+        collection.objects.link(obj)
+        if armature_obj is not None and muscle.origin_bone in armature_obj.data.bones:
+            parent_to_bone(obj, armature_obj, muscle.origin_bone)
+        objects.append(obj)
+    return objects

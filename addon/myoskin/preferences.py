@@ -11,11 +11,12 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
     bl_idname = ADDON_PACKAGE
 
     section_spacing: FloatProperty(
-        name="Section Spacing", description="Distance between cutting planes along a limb bone during extraction",
-        default=0.02, min=0.001, soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
+        name="Section Spacing", description="Distance between cutting planes during extraction "
+                                            "(0 = automatic: 1/100 of the character's largest extent)",
+        default=0.0, min=0.0, soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
     min_sections: IntProperty(
         name="Minimum Sections", description="Sections a muscle needs to be kept by extraction",
-        default=3, min=2, soft_max=20)
+        default=5, min=1, soft_max=20)
     joints_per_muscle: IntProperty(
         name="Joints per Muscle", description="Muscle joints (deform bones) placed along each muscle's action path",
         default=4, min=1, soft_max=16)
@@ -40,8 +41,8 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
 
 class _Defaults:
     """The preference defaults, for scripts run without the add-on enabled."""
-    section_spacing = 0.02
-    min_sections = 3
+    section_spacing = 0.0
+    min_sections = 5
     joints_per_muscle = 4
     bulge_factor = 1.0
 
