@@ -39,18 +39,14 @@ def parse_args():
 
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from scene_setup import add_sun, empty_scene, frame_camera, muscle_material, render_still, setup_render, skin_material  # noqa: E402
+from scene_setup import (add_sun, empty_scene, frame_camera, muscle_material, render_still,  # noqa: E402
+                         require_addon, setup_render, skin_material)
 
 
 def addon():
     """The add-on's modules, or a clear exit when Blender was started without it."""
-    try:
-        from myoskin import blender_io, core_loader, preferences, truth
-    except ImportError:
-        sys.exit("demo.py: the Myoskin add-on is not importable: run Blender with "
-                 "BLENDER_USER_SCRIPTS=<build>/blender_scripts and --addons myoskin (./myoskin.sh demo does)")
-    if not core_loader.available():
-        sys.exit(f"demo.py: {core_loader.status().message}")
+    core_loader = require_addon("demo.py")
+    from myoskin import blender_io, preferences, truth
     return blender_io, core_loader, preferences, truth
 
 

@@ -19,7 +19,8 @@ import bpy
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from scene_setup import add_sun, empty_scene, frame_camera, muscle_material, render_still, setup_render, skin_material  # noqa: E402
+from scene_setup import (add_sun, empty_scene, frame_camera, muscle_material, render_still,  # noqa: E402
+                         require_addon, setup_render, skin_material)
 
 
 def parse_args():
@@ -34,17 +35,6 @@ def parse_args():
 
 def log(message, start=[time.perf_counter()]):  # noqa: B006 (process start time)
     print(f"[render_muscles {time.perf_counter() - start[0]:5.1f} s] {message}", flush=True)
-
-
-def core_module():
-    try:
-        from myoskin import core_loader
-    except ImportError:
-        sys.exit("render_muscles.py: the Myoskin add-on is not importable: run Blender with "
-                 "BLENDER_USER_SCRIPTS=<build>/blender_scripts and --addons myoskin")
-    if not core_loader.available():
-        sys.exit(f"render_muscles.py: {core_loader.status().message}")
-    return core_loader.core()
 
 
 def mesh_object(name, vertices, triangles, material, parent):
@@ -93,7 +83,7 @@ def render_character(core, path, out, args):
 
 def main():
     args = parse_args()
-    core = core_module()
+    core = require_addon("render_muscles.py").core()
     out = os.path.abspath(args.output)
     os.makedirs(out, exist_ok=True)
     counts = {}

@@ -1,9 +1,23 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Scene helpers shared by the example scripts (run inside Blender): empty scene, translucent skin and
 muscle materials, an orthographic camera fitted to points, a sun, Cycles CPU render settings."""
+import sys
+
 import bpy
 import numpy as np
 from mathutils import Vector
+
+
+def require_addon(prog):
+    """The add-on's core_loader with its compiled core loaded, or a clear exit saying what to do."""
+    try:
+        from myoskin import core_loader
+    except ImportError:
+        sys.exit(f"{prog}: the Myoskin add-on is not importable: run Blender with "
+                 "BLENDER_USER_SCRIPTS=<build>/blender_scripts and --addons myoskin (./myoskin.sh does)")
+    if not core_loader.available():
+        sys.exit(f"{prog}: {core_loader.status().message}")
+    return core_loader
 
 
 # ------------------------------------------------------------------------------------------------

@@ -482,4 +482,29 @@ def test_gltf_import_matches_core_loader():
     assert from_blender.has_weights
 
 
+
+def test_extracted_muscles_become_meshes_on_their_bones():
+    """Extraction from a character read out of Blender, muscles as meshes parented to their origin bones."""
+    clear_scene()
+    blender_io = addon_module("blender_io")
+    character, truth = core().make_synthetic_arm(seed=2)
+    arm_obj, mesh_obj = blender_io.character_to_blender(character, "ExtractArm")
+    from_blender = blender_io.character_from_blender(mesh_obj, arm_obj)
+    muscles, report = core().extract_muscles(from_blender)
+    direct, _ = core().extract_muscles(character)
+    assert len(muscles) == len(direct) >= 3, (len(muscles), len(direct))
+    assert core().measure_extraction(muscles, truth)["matched"] >= 3
+    objects = blender_io.muscles_to_meshes(muscles, armature_obj=arm_obj)
+    assert len(objects) == len(muscles)
+    for obj, m in zip(objects, muscles):
+        assert obj.parent == arm_obj and obj.parent_bone == m.origin_bone
+        bpy.context.view_layer.update()
+        world = np.array(obj.matrix_world)
+        co = np.empty(3 * len(obj.data.vertices), dtype=np.float32)
+        obj.data.vertices.foreach_get("co", co)
+        placed = co.reshape(-1, 3) @ world[:3, :3].T + world[:3, 3]
+        assert np.abs(placed - np.asarray(m.surface_vertices)).max() < 1e-5  # at rest, where the core put it
+        assert len(obj.data.polygons) == len(m.surface_triangles)
+
+
 runner.run()
