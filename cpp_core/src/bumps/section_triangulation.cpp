@@ -5,6 +5,7 @@
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Triangulation_face_base_with_info_2.h>
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
+#include <CGAL/exceptions.h>
 
 #include <cmath>
 #include <string>
@@ -111,7 +112,11 @@ SectionTriangulation triangulateSection(const Points2& polygon) {
     input.emplace_back(CgalPoint(p.x(), p.y()), i);
   }
   Cdt cdt;
-  cdt.insert(input.begin(), input.end());
+  try {
+    cdt.insert(input.begin(), input.end());
+  } catch (const CGAL::Failure_exception& e) {
+    throw InputError(std::string("section polygon could not be triangulated: ") + e.what());
+  }
   std::vector<Cdt::Vertex_handle> handle(m);
   for (auto v = cdt.finite_vertices_begin(); v != cdt.finite_vertices_end(); ++v) handle[v->info()] = v;
   for (int i = 0; i < m; ++i)
@@ -122,6 +127,8 @@ SectionTriangulation triangulateSection(const Points2& polygon) {
     for (int i = 0; i < m; ++i) cdt.insert_constraint(handle[i], handle[s.next(i)]);
   } catch (const Cdt::Intersection_of_constraints_exception&) {
     throw InputError("section polygon intersects itself");
+  } catch (const CGAL::Failure_exception& e) {  // a CGAL check on degenerate input (checks are on in debug)
+    throw InputError(std::string("section polygon could not be triangulated: ") + e.what());
   }
   if (cdt.dimension() != 2) throw InputError("section polygon has zero area (all points collinear)");
 
