@@ -12,7 +12,7 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
 
     section_spacing: FloatProperty(
         name="Section Spacing", description="Distance between cutting planes during extraction "
-                                            "(0 = automatic: 1/100 of the character's largest extent)",
+                                            "(0 = automatic: 1/80 of the character's largest extent)",
         default=0.0, min=0.0, soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
     min_sections: IntProperty(
         name="Minimum Sections", description="Sections a muscle needs to be kept by extraction",

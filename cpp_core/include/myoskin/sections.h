@@ -44,7 +44,7 @@ struct CuttingPlane {
 };
 
 struct PlaneOptions {
-  double spacing = 0.0;  // metres between planes; 0 = derived from the mesh size (1/100 of its largest extent)
+  double spacing = 0.0;  // metres between planes; 0 = derived from the mesh size (1/80 of its largest extent)
   double endMargin = 0.12;  // fraction of a bone's length left out at each end (joints give no clean loops)
   double bendAngle = 0.26;  // radians: a joint bending more than this inside a chain gets the end margins
   double shoulderStart = 0.35;  // shoulder planes start this fraction along the clavicle chain

@@ -121,7 +121,7 @@ std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const st
   if (character.mesh.numVertices() == 0) throw InputError("cutting planes: the skin is empty");
   const Vec3 lo = character.mesh.vertices.colwise().minCoeff().transpose(), hi = character.mesh.vertices.colwise().maxCoeff().transpose();
   const double height = (hi - lo).maxCoeff();
-  const double spacing = options.spacing > 0 ? options.spacing : height / 100.0;
+  const double spacing = options.spacing > 0 ? options.spacing : height / 80.0;
   if (!(spacing > 1e-5)) throw InputError("cutting planes: the skin has no extent");
 
   const auto limbChains = chainsOf(sk, roles, BoneRole::Limb);
