@@ -1,0 +1,79 @@
+// Muscle deformation (DESIGN.md section 5; Yang & Zhang 2006, "Muscle Deformation", "Muscle Movement"):
+// action paths (straight, wrapping round a joint sphere, wrapping round a bone cylinder), the frame
+// carried along them, volume-preserving bulge, and the muscle joints whose matrices Equation 3 uses.
+//
+// Conventions (shared with skinning.h and the Blender add-on):
+// - every matrix is in mesh space (metres), like Blender's Bone.matrix_local / PoseBone.matrix;
+// - a muscle joint's frame follows Blender's bone convention: its Y axis is the path tangent
+//   (origin -> insertion), X and Z span the section plane. A joint matrix is
+//   T(path point) * R(carried frame) * diag(s, lambda, s): scale s across the muscle, the path's stretch
+//   lambda = L / L0 along it. So a muscle joint can be written 1:1 to a Blender deform bone whose
+//   matrix_local is the joint's bind matrix (head = bind translation, tail along bind Y).
+// - the skinning transform of joint j is jointMatrices[j] * bindMatrices[j]^-1; at rest it is identity.
+#pragma once
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "myoskin/muscle.h"
+#include "myoskin/skeleton.h"
+#include "myoskin/types.h"
+
+namespace myoskin {
+
+// ============================================================================
+// Options
+// ============================================================================
+
+struct MuscleRigOptions {
+  int jointsOverride = 0;        // > 0: use this many joints per muscle instead of Muscle::joints
+  double restTolerance = 1e-9;   // relative; a pose this close to rest gives bind matrices exactly
+};
+
+// ============================================================================
+// Evaluated state (preallocated by MuscleRig::makeState, refilled by evaluate without allocating)
+// ============================================================================
+
+struct MuscleRigState {
+  std::vector<Mat4> jointMatrices;   // #J posed joint matrices (mesh space)
+  std::vector<double> length;        // #M action-path length
+  std::vector<double> stretch;       // #M lambda = length / rest length
+  std::vector<char> wrapped;         // #M 1 when the path currently wraps (sphere or cylinder)
+  std::vector<Points> surfaces;      // #M posed surfaces (#V_m by 3), filled when requested
+};
+
+// ============================================================================
+// The stateful evaluator: built once from skeleton + muscles, then evaluate(pose) per frame
+// ============================================================================
+
+class MuscleRig {
+ public:
+  // Validates (InputError naming the muscle/bone): attachment bones exist, origin != insertion, wrap bone
+  // exists and radius > 0 when wrapping, sections usable. Muscles are copied.
+  MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscles, const MuscleRigOptions& options = {});
+
+  int numMuscles() const;
+  int numJoints() const;                        // total muscle joints #J over all muscles
+  int jointOffset(int muscle) const;            // first joint index of a muscle
+  int jointCount(int muscle) const;             // joints of a muscle
+  const std::vector<std::string>& jointNames() const;   // #J, "<muscle name>.j<k>" (k from 0, origin side)
+  const std::vector<int>& jointMuscle() const;          // #J muscle index of each joint
+  const std::vector<int>& jointParentBone() const;      // #J skeleton bone (the muscle's origin bone)
+  const std::vector<Mat4>& bindMatrices() const;        // #J rest joint matrices (rigid: scale 1)
+  const std::vector<double>& restLengths() const;       // #M rest action-path length
+  const std::vector<Muscle>& muscles() const;
+
+  // A state sized for this rig (allocates once).
+  MuscleRigState makeState() const;
+  // Fill state.jointMatrices/length/stretch/wrapped from a pose (#B posed bone matrices); with
+  // withSurfaces also state.surfaces. No allocation once state came from makeState. Throws InputError
+  // on a pose of the wrong size or with non-finite values.
+  void evaluate(const Pose& pose, MuscleRigState& state, bool withSurfaces = false) const;
+
+  struct Impl;
+
+ private:
+  std::shared_ptr<const Impl> impl_;
+};
+
+}  // namespace myoskin
