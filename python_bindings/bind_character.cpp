@@ -2,6 +2,7 @@
 #include "bindings.h"
 #include "myoskin/errors.h"
 #include "myoskin/io.h"
+#include "myoskin/mesh.h"
 
 namespace myoskin::python {
 
@@ -149,6 +150,25 @@ void bindCharacter(py::module_& m) {
         py::arg("bone_rest"), py::arg("weight_joints"), py::arg("weight_values"),
         "Build a validated Character from arrays (vertices #V by 3, triangles #F by 3, bone_rest #B by 4 by 4, "
         "weight_joints/weight_values #V by K). Raises ValueError naming the offending item.");
+  m.def(
+      "weld_mesh",
+      [](const Points& vertices, const Triangles& triangles, double tolerance) {
+        Mesh mesh{vertices, triangles};
+        validateMesh(mesh);
+        if (!(tolerance >= 0)) throw InputError("weld_mesh: tolerance must be >= 0");
+        std::vector<int> weldMap;
+        Mesh welded;
+        {
+          py::gil_scoped_release release;
+          welded = weldByPosition(mesh, tolerance, weldMap);
+        }
+        IndexVector map(static_cast<Eigen::Index>(weldMap.size()));
+        for (size_t i = 0; i < weldMap.size(); ++i) map[static_cast<Eigen::Index>(i)] = weldMap[i];
+        return py::make_tuple(welded.vertices, welded.triangles, map);
+      },
+      py::arg("vertices"), py::arg("triangles"), py::arg("tolerance") = 1e-6,
+      "Merge vertices closer than tolerance (UV seams). Returns (vertices #W by 3, triangles #F' by 3, "
+      "weld_map #V: welded index of each input vertex); collapsed triangles are dropped.");
   m.def(
       "analyze_topology",
       [](const Points& vertices, const Triangles& triangles) {

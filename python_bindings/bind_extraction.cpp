@@ -123,6 +123,27 @@ void bindExtraction(py::module_& m) {
       "line over at least min_coverage of the true length. mean_center_error is relative to the radius.");
 
   m.def(
+      "reattach_muscle",
+      [](Muscle muscle, int samplesPerEnd, int ringVertices, int capRings) {
+        if (samplesPerEnd < 1 || ringVertices < 3 || capRings < 1)
+          throw InputError("reattach_muscle: samples_per_end >= 1, ring_vertices >= 3, cap_rings >= 1");
+        EndOptions ends;
+        ends.samplesPerEnd = samplesPerEnd;
+        SurfaceOptions surface;
+        surface.ringVertices = ringVertices;
+        surface.capRings = capRings;
+        {
+          py::gil_scoped_release release;
+          reattachMuscle(muscle, ends, surface);
+        }
+        return muscle;
+      },
+      py::arg("muscle"), py::arg("samples_per_end") = EndOptions{}.samplesPerEnd,
+      py::arg("ring_vertices") = SurfaceOptions{}.ringVertices, py::arg("cap_rings") = SurfaceOptions{}.capRings,
+      "A copy of `muscle` re-attached to its (moved) origin/insertion positions: Hermite ends of the root curve "
+      "rebuilt, section u recomputed by arc length, surface re-lofted; the sections are kept.");
+
+  m.def(
       "subdivide",
       [](const Character& c, int levels) {
         py::gil_scoped_release release;

@@ -19,19 +19,23 @@ bl_info = {
 
 import bpy  # noqa: E402
 
-from . import core_loader, operators, panels, preferences  # noqa: E402,F401
+from . import core_loader, handlers, operators, panels, preferences, state  # noqa: E402,F401
 
-classes = (*preferences.classes, *operators.classes, *panels.classes)
+classes = (*state.classes, *preferences.classes, *operators.classes, *panels.classes)
 
 
 def register():
     for cls in classes:
         bpy.utils.register_class(cls)
+    state.register()
+    handlers.register()
     if not core_loader.available():
         print(f"Myoskin: {core_loader.status().message}")
 
 
 def unregister():
+    handlers.unregister()
+    state.unregister()
     for cls in reversed(classes):
         if getattr(cls, "is_registered", False):
             bpy.utils.unregister_class(cls)

@@ -414,3 +414,75 @@ def muscles_to_meshes(muscles, collection=None, material=None, armature_obj=None
             parent_to_bone(obj, armature_obj, muscle.origin_bone)
         objects.append(obj)
     return objects
+
+
+# ------------------------------------------------------------------------------------------------
+# Welded characters (extraction needs a closed skin; Blender splits vertices at UV seams)
+# ------------------------------------------------------------------------------------------------
+
+
+def welded_character_from_blender(mesh_obj, armature_obj=None, tolerance=1e-6):
+    """(core Character with vertices closer than `tolerance` merged, weld_map #V of the Blender mesh ->
+    welded index). A welded vertex takes the weights of its first Blender vertex."""
+    core = core_loader.core()
+    character = character_from_blender(mesh_obj, armature_obj)
+    vertices, triangles, weld_map = core.weld_mesh(np.asarray(character.vertices),
+                                                   np.asarray(character.triangles), tolerance)
+    weld_map = np.asarray(weld_map, dtype=np.int64)
+    if len(vertices) == character.num_vertices:
+        return character, weld_map
+    _, first = np.unique(weld_map, return_index=True)
+    joints = np.asarray(character.weight_joints)
+    weights = np.asarray(character.weight_values)
+    if joints.size:
+        joints, weights = joints[first], weights[first]
+    welded = core.character_from_arrays(
+        character.name, vertices, triangles, list(character.bone_names), np.asarray(character.bone_parents),
+        np.asarray(character.bone_heads), np.asarray(character.bone_tails), np.asarray(character.bone_rest),
+        np.ascontiguousarray(joints), np.ascontiguousarray(weights))
+    return welded, weld_map
+
+
+def welded_mask(mask, weld_map, num_welded):
+    """#W booleans: a welded vertex is in the mask when any of its Blender vertices is."""
+    out = np.zeros(num_welded, dtype=bool)
+    out[weld_map[np.asarray(mask, dtype=bool)]] = True
+    return out
+
+
+def selected_vertex_mask(mesh_obj, faces=False):
+    """#V booleans of the selected vertices (or of the vertices of selected faces), edit mode included."""
+    if mesh_obj.mode == 'EDIT':
+        mesh_obj.update_from_editmode()
+    mesh = mesh_obj.data
+    if faces:
+        sel = np.zeros(len(mesh.polygons), dtype=bool)
+        mesh.polygons.foreach_get("select", sel)
+        mask = np.zeros(len(mesh.vertices), dtype=bool)
+        if sel.any():
+            loops = np.empty(len(mesh.loops), dtype=np.int32)
+            mesh.loops.foreach_get("vertex_index", loops)
+            starts = np.empty(len(mesh.polygons), dtype=np.int32)
+            totals = np.empty(len(mesh.polygons), dtype=np.int32)
+            mesh.polygons.foreach_get("loop_start", starts)
+            mesh.polygons.foreach_get("loop_total", totals)
+            idx = np.concatenate([np.arange(s, s + t) for s, t in zip(starts[sel], totals[sel])])
+            mask[loops[idx]] = True
+        return mask
+    mask = np.zeros(len(mesh.vertices), dtype=bool)
+    mesh.vertices.foreach_get("select", mask)
+    return mask
+
+
+def vertex_group_mask(mesh_obj, group_name, threshold=0.0):
+    """#V booleans of the vertices in a vertex group with weight > threshold; ValueError when missing."""
+    group = mesh_obj.vertex_groups.get(group_name)
+    if group is None:
+        raise ValueError(f"Mesh '{mesh_obj.name}' has no vertex group '{group_name}'")
+    mask = np.zeros(len(mesh_obj.data.vertices), dtype=bool)
+    gi = group.index
+    for v in mesh_obj.data.vertices:
+        for g in v.groups:
+            if g.group == gi and g.weight > threshold:
+                mask[v.index] = True
+    return mask

@@ -180,6 +180,11 @@ Muscle buildMuscleEnds(const std::vector<MuscleSection>& sections, int bone, con
 // transported along the centres, so ellipses whose axis a turns do not twist the loft.
 Mesh loftMuscleSurface(const Muscle& muscle, const SurfaceOptions& options = {});
 
+// After the user moved muscle.origin/insertion (positions, mesh space): rebuilds the Hermite ends of the
+// root curve to the new attachment points, recomputes section u by arc length and re-lofts the surface.
+// The sections (the visible, extracted part) are kept. Throws InputError on no sections or NaN positions.
+void reattachMuscle(Muscle& muscle, const EndOptions& options = {}, const SurfaceOptions& surface = {});
+
 // ============================================================================
 // Measurement (DESIGN.md section 8)
 // ============================================================================

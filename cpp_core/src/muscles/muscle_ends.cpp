@@ -45,6 +45,45 @@ EndPoint findExtremity(const Vec3& end, const Vec3& dir, double maxLength, const
   return at[0];
 }
 
+// Root curve: origin, Hermite (tangent at the first centre = the first chord), centres, Hermite, insertion;
+// section u by arc length over the full curve. first/last: unit directions at the first/last centre.
+void rebuildRootCurve(Muscle& m, const Vec3& origin, const Vec3& insertion, const Vec3& first, const Vec3& last,
+                      const EndOptions& options) {
+  const int n = static_cast<int>(m.sections.size());
+  std::vector<Vec3> centers(n);
+  for (int i = 0; i < n; ++i) centers[i] = m.sections[i].center;
+  const int k = std::max(1, options.samplesPerEnd);
+  std::vector<Vec3> curve;
+  std::vector<int> centerIndex(n);
+  {
+    const double L = (centers[0] - origin).norm();
+    const Vec3 m0 = L > 1e-12 ? Vec3((centers[0] - origin)) : Vec3(L * first);
+    const Vec3 m1 = L * first;
+    curve.push_back(origin);
+    for (int j = 1; j < k; ++j) curve.push_back(hermite(origin, m0, centers[0], m1, double(j) / k));
+  }
+  for (int i = 0; i < n; ++i) {
+    centerIndex[i] = static_cast<int>(curve.size());
+    curve.push_back(centers[i]);
+  }
+  {
+    const double L = (insertion - centers[n - 1]).norm();
+    const Vec3 m0 = L * last;
+    const Vec3 m1 = L > 1e-12 ? Vec3(insertion - centers[n - 1]) : Vec3(L * last);
+    for (int j = 1; j < k; ++j) curve.push_back(hermite(centers[n - 1], m0, insertion, m1, double(j) / k));
+    curve.push_back(insertion);
+  }
+  std::vector<double> arc(curve.size(), 0.0);
+  for (size_t i = 1; i < curve.size(); ++i) arc[i] = arc[i - 1] + (curve[i] - curve[i - 1]).norm();
+  const double total = arc.back();
+  for (int i = 0; i < n; ++i)
+    m.sections[i].u = total > 1e-12 ? std::clamp(-1.0 + 2.0 * arc[centerIndex[i]] / total, -1.0, 1.0) : 0.0;
+  // Strictly increasing u (coincident centres would repeat a value).
+  for (int i = 1; i < n; ++i)
+    if (m.sections[i].u <= m.sections[i - 1].u) m.sections[i].u = std::min(1.0, m.sections[i - 1].u + 1e-9);
+  m.rootCurve = std::move(curve);
+}
+
 }  // namespace
 
 Muscle buildMuscleEnds(const std::vector<MuscleSection>& input, int bone, const Skeleton& skeleton,
@@ -88,38 +127,7 @@ Muscle buildMuscleEnds(const std::vector<MuscleSection>& input, int bone, const 
   m.origin = MuscleAttachment{skeleton.bones[o.bone].name, o.position};
   m.insertion = MuscleAttachment{skeleton.bones[e.bone].name, e.position};
 
-  // Root curve: origin, Hermite (tangent at the first centre = the first chord), centres, Hermite, insertion.
-  const int k = std::max(1, options.samplesPerEnd);
-  std::vector<Vec3> curve;
-  std::vector<int> centerIndex(n);
-  {
-    const double L = (centers[0] - o.position).norm();
-    const Vec3 m0 = L > 1e-12 ? Vec3((centers[0] - o.position)) : Vec3(L * first);
-    const Vec3 m1 = L * first;
-    curve.push_back(o.position);
-    for (int j = 1; j < k; ++j) curve.push_back(hermite(o.position, m0, centers[0], m1, double(j) / k));
-  }
-  for (int i = 0; i < n; ++i) {
-    centerIndex[i] = static_cast<int>(curve.size());
-    curve.push_back(centers[i]);
-  }
-  {
-    const double L = (e.position - centers[n - 1]).norm();
-    const Vec3 m0 = L * last;
-    const Vec3 m1 = L > 1e-12 ? Vec3(e.position - centers[n - 1]) : Vec3(L * last);
-    for (int j = 1; j < k; ++j) curve.push_back(hermite(centers[n - 1], m0, e.position, m1, double(j) / k));
-    curve.push_back(e.position);
-  }
-  // u by arc length over the full root curve.
-  std::vector<double> arc(curve.size(), 0.0);
-  for (size_t i = 1; i < curve.size(); ++i) arc[i] = arc[i - 1] + (curve[i] - curve[i - 1]).norm();
-  const double total = arc.back();
-  for (int i = 0; i < n; ++i)
-    m.sections[i].u = total > 1e-12 ? std::clamp(-1.0 + 2.0 * arc[centerIndex[i]] / total, -1.0, 1.0) : 0.0;
-  // Strictly increasing u (coincident centres would repeat a value).
-  for (int i = 1; i < n; ++i)
-    if (m.sections[i].u <= m.sections[i - 1].u) m.sections[i].u = std::min(1.0, m.sections[i - 1].u + 1e-9);
-  m.rootCurve = std::move(curve);
+  rebuildRootCurve(m, o.position, e.position, first, last, options);
   return m;
 }
 
@@ -139,6 +147,26 @@ Muscle buildMuscleEnds(const MuscleChain& chain, const std::vector<SectionBumps>
     s.push_back(ms);
   }
   return buildMuscleEnds(s, chain.bone, skeleton, options);
+}
+
+
+// ============================================================================
+// Re-attachment after the user moved an origin or insertion (locators)
+// ============================================================================
+
+void reattachMuscle(Muscle& muscle, const EndOptions& options, const SurfaceOptions& surface) {
+  const int n = static_cast<int>(muscle.sections.size());
+  if (n == 0) throw InputError("muscle '" + muscle.name + "': no sections to re-attach");
+  if (!muscle.origin.position.allFinite() || !muscle.insertion.position.allFinite())
+    throw InputError("muscle '" + muscle.name + "': origin or insertion is not finite");
+  Vec3 first = n > 1 ? Vec3(muscle.sections[1].center - muscle.sections[0].center) : muscle.sections[0].normal;
+  Vec3 last = n > 1 ? Vec3(muscle.sections[n - 1].center - muscle.sections[n - 2].center)
+                    : muscle.sections[n - 1].normal;
+  if (first.norm() < 1e-12) first = muscle.sections[0].normal;
+  if (last.norm() < 1e-12) last = muscle.sections[n - 1].normal;
+  rebuildRootCurve(muscle, muscle.origin.position, muscle.insertion.position, first.normalized(), last.normalized(),
+                   options);
+  muscle.surface = loftMuscleSurface(muscle, surface);
 }
 
 }  // namespace myoskin

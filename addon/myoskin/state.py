@@ -1,0 +1,124 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Where muscles live in the .blend (decision; see README "Muscle state in the .blend").
+
+Everything is stored on the character's ARMATURE OBJECT, so it is saved with the file, survives reload and
+undo, and is readable without the add-on (ID properties and a Text datablock need no registered classes):
+
+    armature_obj.myoskin                  MyoskinRigState (PointerProperty on bpy.types.Object)
+        .skin                             the skinned mesh object the muscles belong to
+        .collection                       the "Muscles" collection holding the muscle surface objects
+        .muscles_text                     Text datablock "<armature>.muscles.json": the whole muscles.json
+                                          (format myoskin.muscles v1), rewritten after every change
+        .muscles[i]                       MyoskinMuscle, one per muscle, in muscles.json order:
+            name, enabled, region, confidence
+            data                          this muscle's full geometry as a one-muscle muscles.json document
+                                          (root curve, sections, origin/insertion, wrap, bulge, joints)
+            bulge, joints                 bulge factor k, muscle-joint count (win over `data`)
+            wrap_type/bone/radius/side    action-path wrap (win over `data`)
+            origin_bone, insertion_bone   attachment bones (win over `data`)
+            origin_locator, insertion_locator, wrap_locator   empties (positions win over `data`)
+            surface                       the muscle's mesh object
+        .active_index                     the UI list's selection
+        .bound, .dirty                    muscle joints are bound to the rig / edited since the bind
+        .weights_text                     Text datablock with the skin's original vertex groups (Unbind
+                                          restores them exactly)
+        .joint_names_text                 Text datablock: the bound muscle-joint bone names (JSON list)
+
+Converting this to and from core Muscle lists is muscle_io's job; no core call here (only property
+definitions and their update callbacks, which queue work for muscle_io).
+"""
+import bpy
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty,
+                       PointerProperty, StringProperty)
+
+WRAP_TYPES = (
+    ('none', "None", "Straight action path from origin to insertion"),
+    ('joint', "Joint", "Wrap around a sphere at the head of the wrap bone (the joint)"),
+    ('bone', "Bone", "Wrap around a cylinder around the wrap bone"),
+)
+WRAP_SIDES = (
+    ('1', "+", "Wrap one way round the cylinder"),
+    ('-1', "-", "Wrap the other way round"),
+)
+
+
+def _settings_changed(self, context):
+    """A muscle setting changed: update its wrap display and the muscles.json text (through muscle_io)."""
+    from . import muscle_io
+    arm_obj = self.id_data
+    try:
+        muscle_io.on_settings_changed(arm_obj, self)
+    except Exception as e:  # noqa: BLE001  (an update callback must never raise into the UI)
+        print(f"Myoskin: could not apply the change to '{self.name}': {e}")
+
+
+def _name_changed(self, context):
+    from . import muscle_io
+    try:
+        muscle_io.on_renamed(self.id_data, self)
+    except Exception as e:  # noqa: BLE001
+        print(f"Myoskin: could not rename '{self.name}': {e}")
+
+
+class MyoskinMuscle(bpy.types.PropertyGroup):
+    name: StringProperty(name="Name", description="Muscle name (its joints become <name>.j<k>)",
+                         update=_name_changed)
+    previous_name: StringProperty(options={'HIDDEN'})
+    enabled: BoolProperty(name="Enabled", description="Use this muscle when binding (disabled muscles keep "
+                                                      "their data but get no joints)", default=True,
+                          update=_settings_changed)
+    region: StringProperty(name="Region", description="Skin region the muscle was extracted from")
+    confidence: FloatProperty(name="Confidence", min=0.0, max=1.0)
+    data: StringProperty(name="Data", description="Full muscle geometry (muscles.json, one muscle)",
+                         options={'HIDDEN'})
+    bulge: FloatProperty(name="Bulge", description="Bulge factor k: how much of the thickening goes to the "
+                                                   "belly (0 = uniform; volume is constant for every k)",
+                         default=1.0, min=0.0, soft_max=4.0, update=_settings_changed)
+    joints: IntProperty(name="Joints", description="Muscle joints (deform bones) along the action path",
+                        default=4, min=1, soft_max=16, update=_settings_changed)
+    wrap_type: EnumProperty(name="Wrap", items=WRAP_TYPES, default='none', update=_settings_changed)
+    wrap_bone: StringProperty(name="Wrap Bone", description="Joint wrap: sphere at this bone's head; bone "
+                                                            "wrap: cylinder around this bone",
+                              update=_settings_changed)
+    wrap_radius: FloatProperty(name="Wrap Radius", default=0.03, min=0.0, soft_max=0.3, subtype='DISTANCE',
+                               unit='LENGTH', update=_settings_changed)
+    wrap_side: EnumProperty(name="Wrap Side", items=WRAP_SIDES, default='1', update=_settings_changed)
+    origin_bone: StringProperty(name="Origin Bone")
+    insertion_bone: StringProperty(name="Insertion Bone")
+    origin_locator: PointerProperty(name="Origin Locator", type=bpy.types.Object)
+    insertion_locator: PointerProperty(name="Insertion Locator", type=bpy.types.Object)
+    wrap_locator: PointerProperty(name="Wrap Display", type=bpy.types.Object)
+    surface: PointerProperty(name="Surface", type=bpy.types.Object)
+
+
+class MyoskinRigState(bpy.types.PropertyGroup):
+    skin: PointerProperty(name="Skin", type=bpy.types.Object, description="The skinned mesh of the muscles")
+    collection: PointerProperty(name="Muscles Collection", type=bpy.types.Collection)
+    muscles_text: PointerProperty(name="muscles.json", type=bpy.types.Text)
+    muscles: CollectionProperty(type=MyoskinMuscle)
+    active_index: IntProperty(name="Active Muscle", default=0, min=0)
+    bound: BoolProperty(name="Bound", description="Muscle joints are deform bones of this armature")
+    dirty: BoolProperty(name="Edited Since Bind", description="Muscles changed after the bind: bind again")
+    live: BoolProperty(name="Live Update", default=True,
+                       description="Move muscle joints (and the muscle surfaces) whenever the skeleton moves")
+    weights_text: PointerProperty(name="Original Weights", type=bpy.types.Text)
+    joint_names_text: PointerProperty(name="Muscle Joint Bones", type=bpy.types.Text)
+
+
+def rig_state(arm_obj):
+    """The MyoskinRigState of an armature object (None for anything else)."""
+    if arm_obj is None or arm_obj.type != 'ARMATURE':
+        return None
+    return arm_obj.myoskin
+
+
+classes = (MyoskinMuscle, MyoskinRigState)
+
+
+def register():
+    bpy.types.Object.myoskin = PointerProperty(type=MyoskinRigState)
+
+
+def unregister():
+    if hasattr(bpy.types.Object, "myoskin"):
+        del bpy.types.Object.myoskin
