@@ -112,13 +112,40 @@ def rig_state(arm_obj):
     return arm_obj.myoskin
 
 
-classes = (MyoskinMuscle, MyoskinRigState)
+LIMITS = (
+    ('ALL', "Whole Skin", "Extract everywhere"),
+    ('SELECTED', "Selected Vertices", "Extract only where vertices are selected"),
+    ('GROUP', "Vertex Group", "Extract only inside a vertex group"),
+)
+
+
+class MyoskinSceneSettings(bpy.types.PropertyGroup):
+    """The sidebar's tool settings (what the buttons pass to the operators)."""
+    spacing: FloatProperty(name="Section Spacing", description="Distance between cutting planes "
+                           "(0 = automatic: 1/80 of the character's extent)", default=0.0, min=0.0,
+                           soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
+    min_confidence: FloatProperty(name="Min Confidence", description="Drop muscles less significant than this",
+                                  default=0.6, min=0.0, max=1.0)
+    limit: EnumProperty(name="Limit To", items=LIMITS, default='ALL')
+    vertex_group: StringProperty(name="Vertex Group", description="Region for Limit To / Add Muscle")
+    region_source: EnumProperty(name="Region", items=(
+        ('FACES', "Selected Faces", "The faces selected on the skin"),
+        ('GROUP', "Vertex Group", "The vertices of the vertex group above")), default='FACES')
+    frame_start: IntProperty(name="Start", default=1)
+    frame_end: IntProperty(name="End", default=120)
+    export_path: StringProperty(name="glTF", subtype='FILE_PATH', default="//character.glb")
+    pc2_path: StringProperty(name="PC2", subtype='FILE_PATH', default="//skin.pc2")
+
+
+classes = (MyoskinMuscle, MyoskinRigState, MyoskinSceneSettings)
 
 
 def register():
     bpy.types.Object.myoskin = PointerProperty(type=MyoskinRigState)
+    bpy.types.Scene.myoskin_ui = PointerProperty(type=MyoskinSceneSettings)
 
 
 def unregister():
-    if hasattr(bpy.types.Object, "myoskin"):
-        del bpy.types.Object.myoskin
+    for owner, attr in ((bpy.types.Scene, "myoskin_ui"), (bpy.types.Object, "myoskin")):
+        if hasattr(owner, attr):
+            delattr(owner, attr)

@@ -7,7 +7,7 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, St
 
 from .. import blender_io, core_loader, muscle_io
 from ..preferences import get_preferences
-from ..state import rig_state
+from ..state import LIMITS, rig_state
 
 
 def resolve_rig(obj):
@@ -55,13 +55,6 @@ class _MuscleOperator:
         if message:
             self.report({'INFO'}, message)
         return {'FINISHED'}
-
-
-LIMITS = (
-    ('ALL', "Whole Skin", "Extract everywhere"),
-    ('SELECTED', "Selected Vertices", "Extract only where vertices are selected"),
-    ('GROUP', "Vertex Group", "Extract only inside a vertex group"),
-)
 
 
 class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):

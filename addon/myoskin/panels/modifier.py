@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Properties editor > Modifiers: the skin's muscle settings (for now: core status and armature)."""
+"""Properties editor > Modifiers: the skin's muscle settings (armature, muscles, bind state, live update)."""
 import bpy
 
+from .. import core_loader
 from ..blender_io import find_armature
 from .common import draw_core_status
 
@@ -23,8 +24,25 @@ class MYOSKIN_PT_skin_muscles(bpy.types.Panel):
         arm = find_armature(context.object)
         if arm is None:
             layout.label(text="No armature: add an Armature modifier", icon='ERROR')
-        else:
-            layout.label(text=f"Skinned by {arm.name} ({len(arm.data.bones)} bones)", icon='ARMATURE_DATA')
+            return
+        layout.label(text=f"Skinned by {arm.name} ({len(arm.data.bones)} bones)", icon='ARMATURE_DATA')
+        state = arm.myoskin
+        if state.skin is not None and state.skin != context.object:
+            layout.label(text=f"Muscles belong to {state.skin.name}", icon='INFO')
+            return
+        enabled = sum(1 for m in state.muscles if m.enabled)
+        layout.label(text=f"{len(state.muscles)} muscles ({enabled} enabled)", icon='MOD_SKIN')
+        row = layout.row(align=True)
+        row.enabled = core_loader.available()
+        if not state.muscles:
+            row.operator("myoskin.extract_muscles", icon='MOD_SKIN')
+            return
+        row.operator("myoskin.bind", icon='LINKED')
+        row.operator("myoskin.unbind", icon='UNLINKED')
+        if state.bound:
+            layout.prop(state, "live")
+            if state.dirty:
+                layout.label(text="Muscles edited since the bind: Bind again", icon='ERROR')
 
 
 classes = (MYOSKIN_PT_skin_muscles,)

@@ -1,8 +1,10 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""View3D > Sidebar > Myoskin: core status, the active character, then the workflow in order."""
+"""View3D > Sidebar > Myoskin: core status, the active character, then the workflow in order
+Extract -> Edit -> Bind -> Bake. Drawing only: no core calls (panels redraw often)."""
 import bpy
 
 from .. import core_loader
+from ..blender_io import find_armature
 from .common import draw_character_info, draw_core_status
 
 
@@ -10,6 +12,20 @@ class MyoskinSidebar:
     bl_space_type = 'VIEW_3D'
     bl_region_type = 'UI'
     bl_category = "Myoskin"
+
+
+def active_rig(context):
+    """(skin or None, armature or None) for the active object: the skin, its armature or a muscle object."""
+    obj = context.active_object
+    if obj is None:
+        return None, None
+    if obj.get("myoskin_muscle") is not None and obj.parent is not None and obj.parent.type == 'ARMATURE':
+        return obj.parent.myoskin.skin, obj.parent
+    arm = find_armature(obj)
+    if arm is None:
+        return None, None
+    skin = obj if obj.type == 'MESH' else arm.myoskin.skin
+    return skin, arm
 
 
 class MYOSKIN_PT_main(MyoskinSidebar, bpy.types.Panel):
@@ -29,34 +45,129 @@ class MYOSKIN_PT_main(MyoskinSidebar, bpy.types.Panel):
 
 class _WorkflowStep(MyoskinSidebar):
     bl_parent_id = "MYOSKIN_PT_main"
-    bl_options = {'DEFAULT_CLOSED'}
     hint = ""
 
     def draw(self, context):
-        col = self.layout.column()
-        col.enabled = core_loader.available()
-        col.label(text=self.hint)
-        col.label(text="Coming soon", icon='TIME')
+        layout = self.layout
+        if not core_loader.available():
+            layout.label(text=self.hint)
+            layout.label(text="Needs the compiled core (see above)", icon='ERROR')
+            return
+        skin, arm = active_rig(context)
+        if arm is None:
+            layout.label(text=self.hint)
+            layout.label(text="Select a skinned mesh or its armature", icon='INFO')
+            return
+        self.draw_step(context, layout, skin, arm, arm.myoskin, context.scene.myoskin_ui)
 
 
 class MYOSKIN_PT_extract(_WorkflowStep, bpy.types.Panel):
     bl_label = "1. Extract"
     hint = "Find the muscles that shape the skin"
 
+    def draw_step(self, context, layout, skin, arm, state, ui):
+        col = layout.column()
+        col.prop(ui, "spacing")
+        col.prop(ui, "min_confidence")
+        col.prop(ui, "limit")
+        if ui.limit == 'GROUP' and skin is not None:
+            col.prop_search(ui, "vertex_group", skin, "vertex_groups")
+        row = layout.row()
+        row.enabled = not state.bound
+        op = row.operator("myoskin.extract_muscles", icon='MOD_SKIN')
+        op.spacing, op.min_confidence, op.limit, op.vertex_group = (ui.spacing, ui.min_confidence, ui.limit,
+                                                                    ui.vertex_group)
+        if state.bound:
+            layout.label(text="Bound: unbind to extract again", icon='LOCKED')
+        layout.label(text=f"{len(state.muscles)} muscles on {arm.name}", icon='OUTLINER_OB_MESH')
+
+
+class MYOSKIN_UL_muscles(bpy.types.UIList):
+    """One row per muscle: enabled toggle, editable name, confidence."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+        row = layout.row(align=True)
+        row.prop(item, "enabled", text="")
+        row.prop(item, "name", text="", emboss=False, icon='MOD_SKIN' if item.enabled else 'HIDE_ON')
+        missing = item.surface is None or item.surface.name not in bpy.data.objects
+        row.label(text="missing" if missing else f"{item.confidence:.2f}", icon='ERROR' if missing else 'NONE')
+
 
 class MYOSKIN_PT_edit(_WorkflowStep, bpy.types.Panel):
     bl_label = "2. Edit"
     hint = "Add, remove and reshape muscles"
+
+    def draw_step(self, context, layout, skin, arm, state, ui):
+        row = layout.row()
+        row.template_list("MYOSKIN_UL_muscles", "", state, "muscles", state, "active_index", rows=5)
+        col = row.column(align=True)
+        op = col.operator("myoskin.add_muscle_from_region", icon='ADD', text="")
+        op.source, op.vertex_group = ui.region_source, ui.vertex_group
+        col.operator("myoskin.remove_muscle", icon='REMOVE', text="").index = -1
+        col.separator()
+        col.operator("myoskin.mirror_muscle", icon='MOD_MIRROR', text="")
+        col.operator("myoskin.select_muscle", icon='RESTRICT_SELECT_OFF', text="").index = -1
+        col.operator("myoskin.refresh_muscles", icon='FILE_REFRESH', text="")
+        box = layout.box()
+        box.label(text="Add Muscle from Region")
+        box.prop(ui, "region_source", text="")
+        if ui.region_source == 'GROUP' and skin is not None:
+            box.prop_search(ui, "vertex_group", skin, "vertex_groups")
+        if not 0 <= state.active_index < len(state.muscles):
+            return
+        item = state.muscles[state.active_index]
+        col = layout.column()
+        col.label(text=f"{item.region}  (confidence {item.confidence:.2f})", icon='INFO')
+        col.prop(item, "bulge")
+        col.prop(item, "joints")
+        col.prop(item, "wrap_type")
+        if item.wrap_type != 'none':
+            col.prop_search(item, "wrap_bone", arm.data, "bones")
+            col.prop(item, "wrap_radius")
+            if item.wrap_type == 'bone':
+                col.prop(item, "wrap_side", expand=True)
+        for end in ("origin", "insertion"):
+            row = col.row(align=True)
+            row.label(text=f"{end.title()}: {getattr(item, end + '_bone')}")
+            locator = getattr(item, end + "_locator")
+            if locator is not None:
+                row.prop(locator, "location", text="")
+            row.operator("myoskin.snap_locator", text="", icon='SNAP_ON').end = end
 
 
 class MYOSKIN_PT_bind(_WorkflowStep, bpy.types.Panel):
     bl_label = "3. Bind"
     hint = "Muscle joints and weights on the rig"
 
+    def draw_step(self, context, layout, skin, arm, state, ui):
+        row = layout.row(align=True)
+        row.operator("myoskin.bind", icon='LINKED')
+        row.operator("myoskin.unbind", icon='UNLINKED')
+        if state.bound:
+            layout.label(text=f"Bound to {state.skin.name if state.skin else '?'}", icon='CHECKMARK')
+            layout.prop(state, "live")
+            if state.dirty:
+                layout.label(text="Muscles edited since the bind: Bind again", icon='ERROR')
+        else:
+            layout.label(text="Not bound", icon='INFO')
+
 
 class MYOSKIN_PT_bake(_WorkflowStep, bpy.types.Panel):
     bl_label = "4. Bake"
     hint = "Muscle motion to keyframes or a cache"
 
+    def draw_step(self, context, layout, skin, arm, state, ui):
+        row = layout.row(align=True)
+        row.prop(ui, "frame_start")
+        row.prop(ui, "frame_end")
+        op = layout.operator("myoskin.bake_action", icon='ACTION')
+        op.frame_start, op.frame_end = ui.frame_start, ui.frame_end
+        layout.prop(ui, "export_path")
+        layout.operator("myoskin.export_gltf", icon='EXPORT').filepath = ui.export_path
+        layout.prop(ui, "pc2_path")
+        op = layout.operator("myoskin.bake_pc2", icon='FILE_CACHE')
+        op.filepath, op.frame_start, op.frame_end = ui.pc2_path, ui.frame_start, ui.frame_end
 
-classes = (MYOSKIN_PT_main, MYOSKIN_PT_extract, MYOSKIN_PT_edit, MYOSKIN_PT_bind, MYOSKIN_PT_bake)
+
+classes = (MYOSKIN_UL_muscles, MYOSKIN_PT_main, MYOSKIN_PT_extract, MYOSKIN_PT_edit, MYOSKIN_PT_bind,
+           MYOSKIN_PT_bake)
