@@ -13,6 +13,7 @@ void bindCharacter(py::module_& m);
 void bindMuscles(py::module_& m);
 void bindGenerate(py::module_& m);
 void bindExtraction(py::module_& m);
+void bindSkinning(py::module_& m);
 
 
 }  // namespace myoskin::python

@@ -7,6 +7,7 @@
 // whose weight sum is <= 1e-4 stays at rest.
 #pragma once
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,11 @@
 #include "myoskin/types.h"
 
 namespace myoskin {
+
+using PointsF = Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>;  // #V by 3 float32
+
+// Weight sum at or below which a vertex stays at rest (Blender's Armature modifier).
+constexpr double kRestWeightThreshold = 1e-4;
 
 // ============================================================================
 // Muscle weights
@@ -40,5 +46,119 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
 // #B + #J skinning transforms M_c * M_d^-1 (combined joints) for a skeleton pose and an evaluated rig.
 void skinningTransforms(const Skeleton& skeleton, const Pose& pose, const MuscleRig& rig,
                         const MuscleRigState& state, std::vector<Mat4>& transforms);
+
+// #B skeleton-only skinning transforms pose.matrices[i] * rest_i^-1 (plain LBS). Throws InputError on a
+// pose of the wrong size or with non-finite values.
+void skeletonTransforms(const Skeleton& skeleton, const Pose& pose, std::vector<Mat4>& transforms);
+
+// ============================================================================
+// The skinner: built once from rest vertices + sparse weights, then deform(transforms) per frame
+// ============================================================================
+
+struct SkinnerOptions {
+  int grainSize = 2048;  // vertices per parallel task (TBB parallel_for grain)
+  int threads = 0;       // worker threads; 0 = all cores
+};
+
+// Equation 3 in float32 over a structure-of-arrays copy of the rest skin: positions x[], y[], z[] and,
+// per vertex, its non-empty influences (joint index, weight normalised once at build time, which is
+// Blender's deform-time normalisation since the weights do not change). A vertex whose weight sum is
+// <= kRestWeightThreshold keeps its rest position. Empty slots (-1 or weight 0) cost nothing.
+class Skinner {
+ public:
+  // rest: #V by 3; weights: #V by K over [0, numJoints). Throws InputError naming the offending
+  // vertex/slot on a size mismatch, NaN/inf or negative weight, or a joint index outside [-1, numJoints).
+  Skinner(const Points& rest, const SkinWeights& weights, int numJoints, const SkinnerOptions& options = {});
+  ~Skinner();
+  Skinner(Skinner&&) noexcept;
+  Skinner& operator=(Skinner&&) noexcept;
+
+  int numVertices() const;
+  int numJoints() const;
+  int influences() const;            // slots per vertex in the packed layout (max used over vertices)
+  int restVertices() const;          // vertices that stay at rest (weight sum <= threshold)
+  const SkinnerOptions& options() const;
+  void setOptions(const SkinnerOptions& options);  // grain size / threads for later deform calls
+  size_t bytesPerFrame() const;      // memory read + written by one deform (for bandwidth bounds)
+
+  // transforms: numJoints() skinning transforms (M_c M_d^-1; the last row is ignored). out: #V by 3.
+  // Throws InputError on a wrong count or non-finite transform. Thread-safe (const).
+  void deform(const std::vector<Mat4>& transforms, PointsF& out) const;
+  void deform(const std::vector<Mat4>& transforms, Points& out) const;
+  // Raw output buffer of 3 * numVertices() floats (row-major #V by 3), e.g. a numpy array or a PC2 frame.
+  void deform(const std::vector<Mat4>& transforms, float* out) const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// One-shot Equation 3: #V by 3 deformed positions (float64 result of the float32 skinner).
+Points skin(const Points& rest, const SkinWeights& weights, const std::vector<Mat4>& transforms,
+            const SkinnerOptions& options = {});
+
+// ============================================================================
+// Quality measures (tests, examples)
+// ============================================================================
+
+// #V by 3 unit area-weighted vertex normals (zero for isolated vertices).
+Points vertexNormals(const Points& vertices, const Triangles& triangles);
+
+// Enclosed volume of each region of a skin: a triangle belongs to region r when all three vertices carry
+// label r (labels: #V, values in [0, numRegions), -1 = none); each region's volume is the signed volume of
+// the cone from the region's vertex centroid to its triangles, so it moves with the region and the
+// regions of a closed skin add up to the skin's enclosed volume. Throws InputError on mismatched sizes.
+std::vector<double> regionVolumes(const Points& vertices, const Triangles& triangles, const IndexVector& labels,
+                                  int numRegions);
+
+// Per-region relative volume change (deformed - rest) / |rest| (0 for an empty region).
+std::vector<double> regionVolumeChange(const Points& rest, const Points& deformed, const Triangles& triangles,
+                                       const IndexVector& labels, int numRegions);
+
+// Local bulge: for every vertex, its displacement along its rest normal after undoing the rigid motion
+// of its dominant skeleton bone: ((T_b^-1 p_deformed) - p_rest) . n_rest, with b the bone of largest
+// skeleton weight and T_b = skeletonTransforms[b]. Plain LBS gives 0 wherever a vertex follows one bone;
+// muscles bulging give > 0. rest/deformed: #V by 3; returns #V. Throws InputError on mismatched sizes.
+Eigen::VectorXd localBulge(const Points& rest, const Triangles& triangles, const Points& deformed,
+                           const SkinWeights& skeletonWeights, const std::vector<Mat4>& skeletonTransforms);
+
+// ============================================================================
+// Point caches (PC2, Blender's Mesh Cache modifier)
+// ============================================================================
+
+// A PC2 file's contents: frames of #V by 3 float32 positions.
+struct PointCache {
+  int numPoints = 0;
+  float startFrame = 0.0f;
+  float sampleRate = 1.0f;  // frames between samples
+  std::vector<PointsF> frames;
+};
+
+// Streams frames to a .pc2 file (header "POINTCACHE2", version 1, little-endian); the sample count in
+// the header is patched on close(). Throws InputError when the file cannot be written or a frame has
+// the wrong size / non-finite values.
+class PC2Writer {
+ public:
+  PC2Writer(const std::string& path, int numPoints, float startFrame = 0.0f, float sampleRate = 1.0f);
+  ~PC2Writer();  // closes (errors are swallowed here; call close() to see them)
+  void writeFrame(const PointsF& positions);
+  void writeFrame(const Points& positions);
+  void writeFrame(const float* positions);  // 3 * numPoints floats
+  void close();
+  int framesWritten() const { return frames_; }
+
+ private:
+  struct File;
+  std::unique_ptr<File> file_;
+  std::string path_;
+  int numPoints_ = 0;
+  int frames_ = 0;
+};
+
+// One-shot writer and the reader (validates the header and the file size; InputError otherwise).
+void writePC2(const std::string& path, const std::vector<PointsF>& frames, float startFrame = 0.0f,
+              float sampleRate = 1.0f);
+PointCache readPC2(const std::string& path);
 
 }  // namespace myoskin

@@ -1,0 +1,304 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The hybrid rig in Blender (DESIGN.md sections 2-3): muscle joints as deform bones of the character's own
+armature, combined weights as vertex groups, posed joint matrices written to pose bones.
+
+Spaces: every matrix is in the armature object's local space (the core's mesh space, see blender_io).
+Combined joints (skinning.h): indices [0, #B) are the skeleton bones, [#B, #B + #J) the muscle joints; a
+weight row refers to bones by position in the `bone_names` list given with it (skeleton names, then joint
+names).
+
+API
+- create_muscle_bones(armature_obj, joint_names, bind_matrices, parent_bones, lengths=None,
+                      layer=MUSCLE_LAYER, collection_name=MUSCLE_COLLECTION) -> list of bone names
+- create_rig_bones(armature_obj, rig, skeleton_bone_names, layer=..., collection_name=...) -> names
+      the same from a _core.MuscleRig (joint_names, bind_matrices, joint_parent_bone, rest_lengths)
+- muscle_bone_names(armature_obj) -> names of the bones created here (tagged "myoskin_joint")
+- remove_muscle_bones(armature_obj, names=None, remove_vertex_groups=True) -> number removed
+- write_combined_weights(mesh_obj, bone_names, joints, weights) -> vertex groups (replaces same-named ones)
+- read_combined_weights(mesh_obj, bone_names) -> (#V by K joints, #V by K weights)
+- pose_bone_matrices(armature_obj, bone_names=None) -> #N by 4 by 4 PoseBone.matrix (evaluated pose)
+- write_joint_matrices(armature_obj, joint_names, joint_matrices, parent_matrices=None) -> None
+      sets the joints' pose (matrix_basis) so that PoseBone.matrix == joint_matrices[j], computed from the
+      parents' posed matrices (parent_matrices: {bone name: 4x4}, or read from the pose), then update_tag().
+
+Blender conditions for the Armature modifier to compute Equation 3 exactly (DESIGN.md section 2):
+B-Bone segments 1, Envelope Multiply off, Deform on, linear (not preserve-volume) modifier.
+"""
+import bpy
+import numpy as np
+from mathutils import Matrix
+
+from . import blender_io
+
+JOINT_TAG = "myoskin_joint"          # Bone custom property marking a muscle-joint bone (value: 1)
+MUSCLE_LAYER = 24                    # Blender 3.x bone layer of the muscle joints
+MUSCLE_COLLECTION = "Muscle Joints"  # Blender 4.x bone collection of the muscle joints
+DEFAULT_LENGTH = 0.02                # metres, display length of a joint bone when none is given
+REST_TOLERANCE = 1e-5                # max |matrix_local - bind| accepted after creating a bone
+
+
+# ------------------------------------------------------------------------------------------------
+# Checks
+# ------------------------------------------------------------------------------------------------
+
+
+def _require_armature(armature_obj, what):
+    if armature_obj is None or getattr(armature_obj, "type", None) != 'ARMATURE':
+        raise ValueError(f"{what}: {getattr(armature_obj, 'name', None)!r} is not an armature object")
+
+
+def _matrices(array, count, what):
+    m = np.asarray(array, dtype=np.float64)
+    if m.ndim != 3 or m.shape[1:] != (4, 4) or m.shape[0] != count:
+        raise ValueError(f"{what} must be {count} by 4 by 4, got shape {m.shape}")
+    bad = np.flatnonzero(~np.isfinite(m).all(axis=(1, 2)))
+    if len(bad):
+        raise ValueError(f"{what}: matrix {int(bad[0])} has a NaN or infinite value")
+    return m
+
+
+def _check_weights(bone_names, joints, weights):
+    joints = np.asarray(joints)
+    weights = np.asarray(weights, dtype=np.float64)
+    if joints.ndim == 1:
+        joints, weights = joints[:, None], weights.reshape(-1, 1)
+    if joints.shape != weights.shape or joints.ndim != 2:
+        raise ValueError(f"joints {joints.shape} and weights {weights.shape} must both be #V by K")
+    bad = (joints < -1) | (joints >= len(bone_names))
+    if bad.any():
+        v, k = np.argwhere(bad)[0]
+        raise ValueError(f"weights: vertex {v} slot {k} uses joint {int(joints[v, k])}, outside "
+                         f"0..{len(bone_names) - 1}")
+    bad = ~np.isfinite(weights) | (weights < 0)
+    if bad.any():
+        v, k = np.argwhere(bad)[0]
+        raise ValueError(f"weights: vertex {v} slot {k} has weight {weights[v, k]} (must be finite and >= 0)")
+    return joints.astype(np.int32), weights
+
+
+# ------------------------------------------------------------------------------------------------
+# Bones
+# ------------------------------------------------------------------------------------------------
+
+
+def _put_in_layer(edit_bone, arm_data, layer, collection_name):
+    """The joint's own bone layer (3.x) or bone collection (4.x)."""
+    if hasattr(arm_data, "collections"):  # Blender 4.0+
+        coll = arm_data.collections.get(collection_name) or arm_data.collections.new(collection_name)
+        coll.assign(edit_bone)
+    else:
+        edit_bone.layers = [i == layer for i in range(32)]
+
+
+def _show_layer(arm_data, layer):
+    if not hasattr(arm_data, "collections"):
+        layers = list(arm_data.layers)
+        layers[layer] = True
+        arm_data.layers = layers
+
+
+def create_muscle_bones(armature_obj, joint_names, bind_matrices, parent_bones, lengths=None,
+                        layer=MUSCLE_LAYER, collection_name=MUSCLE_COLLECTION):
+    """Create one deform bone per muscle joint: matrix_local = bind_matrices[j] (#J by 4 by 4, rigid),
+    parent = parent_bones[j] (a bone name, or None/"" for none), display length lengths[j] (metres; default
+    DEFAULT_LENGTH), in its own bone layer/collection, B-Bone segments 1, Deform on, Envelope Multiply off,
+    tagged JOINT_TAG. Existing bones of the same names are replaced. Returns the bone names.
+    Raises ValueError on bad input (sizes, NaN, unknown parent) and RuntimeError when Blender cannot
+    represent a bind matrix (it is not rigid)."""
+    _require_armature(armature_obj, "create_muscle_bones")
+    names = [str(n) for n in joint_names]
+    if len(set(names)) != len(names) or any(not n for n in names):
+        raise ValueError("create_muscle_bones: joint names must be unique and non-empty")
+    bind = _matrices(bind_matrices, len(names), "bind_matrices")
+    parents = [p or None for p in parent_bones]
+    if len(parents) != len(names):
+        raise ValueError(f"create_muscle_bones: {len(parents)} parent bones for {len(names)} joints")
+    lengths = np.full(len(names), DEFAULT_LENGTH) if lengths is None else np.asarray(lengths, dtype=np.float64)
+    if lengths.shape != (len(names),) or not (np.isfinite(lengths).all() and (lengths > 0).all()):
+        raise ValueError(f"create_muscle_bones: lengths must be {len(names)} positive numbers")
+    arm_data = armature_obj.data
+    existing = set(arm_data.bones.keys())
+    for p in parents:
+        if p is not None and p not in existing and p not in names:
+            raise ValueError(f"create_muscle_bones: parent bone '{p}' is not in armature '{armature_obj.name}'")
+
+    with blender_io.object_mode(armature_obj, 'EDIT'):
+        edit_bones = arm_data.edit_bones
+        for n in names:
+            if n in edit_bones:
+                edit_bones.remove(edit_bones[n])
+        created = []
+        for j, n in enumerate(names):
+            eb = edit_bones.new(n)
+            eb.head = (0.0, 0.0, 0.0)
+            eb.tail = (0.0, float(lengths[j]), 0.0)
+            eb.matrix = Matrix(bind[j].tolist())  # head, direction and roll; keeps the length
+            eb.use_deform = True
+            eb.bbone_segments = 1
+            eb.use_envelope_multiply = False
+            eb.use_connect = False
+            _put_in_layer(eb, arm_data, layer, collection_name)
+            created.append(eb)
+        for eb, p in zip(created, parents):
+            if p is not None:
+                eb.parent = edit_bones[p]
+    _show_layer(arm_data, layer)
+
+    bones = arm_data.bones
+    actual = blender_io.bone_rest_matrices(bones)
+    for j, n in enumerate(names):
+        bones[n][JOINT_TAG] = 1
+        err = float(np.abs(actual[bones.find(n)] - bind[j]).max())
+        if err > REST_TOLERANCE:
+            raise RuntimeError(f"create_muscle_bones: bone '{n}' matrix_local differs from its bind matrix by "
+                               f"{err:.3g} (a bind matrix must be rigid)")
+    return names
+
+
+def create_rig_bones(armature_obj, rig, skeleton_bone_names, layer=MUSCLE_LAYER, collection_name=MUSCLE_COLLECTION):
+    """create_muscle_bones from a _core.MuscleRig: parents from rig.joint_parent_bone (indices into
+    skeleton_bone_names, the core Character's bone order), display length = the muscle's rest length over
+    its joint count."""
+    names = list(rig.joint_names)
+    parent_index = np.asarray(rig.joint_parent_bone)
+    muscle = np.asarray(rig.joint_muscle)
+    counts = np.bincount(muscle, minlength=int(rig.num_muscles)) if len(muscle) else np.zeros(0)
+    rest_lengths = np.asarray(rig.rest_lengths, dtype=np.float64)
+    lengths = np.array([max(rest_lengths[m] / max(counts[m], 1), 1e-3) for m in muscle]) if len(muscle) else None
+    parents = [skeleton_bone_names[i] if i >= 0 else None for i in parent_index]
+    return create_muscle_bones(armature_obj, names, np.asarray(rig.bind_matrices), parents, lengths, layer,
+                               collection_name)
+
+
+def muscle_bone_names(armature_obj):
+    """Names of the armature's muscle-joint bones (those tagged JOINT_TAG), in bone order."""
+    _require_armature(armature_obj, "muscle_bone_names")
+    return [b.name for b in armature_obj.data.bones if b.get(JOINT_TAG)]
+
+
+def remove_muscle_bones(armature_obj, names=None, remove_vertex_groups=True):
+    """Remove muscle-joint bones (names=None: every bone tagged JOINT_TAG; only tagged bones are ever
+    removed) and, with remove_vertex_groups, their vertex groups on the meshes the armature deforms.
+    Returns the number of bones removed."""
+    _require_armature(armature_obj, "remove_muscle_bones")
+    tagged = set(muscle_bone_names(armature_obj))
+    targets = tagged if names is None else {n for n in names if n in tagged}
+    if not targets:
+        return 0
+    with blender_io.object_mode(armature_obj, 'EDIT'):
+        edit_bones = armature_obj.data.edit_bones
+        for n in targets:
+            if n in edit_bones:
+                edit_bones.remove(edit_bones[n])
+    if remove_vertex_groups:
+        for mesh_obj in blender_io.find_skin_meshes(armature_obj):
+            for g in [g for g in mesh_obj.vertex_groups if g.name in targets]:
+                mesh_obj.vertex_groups.remove(g)
+    return len(targets)
+
+
+# ------------------------------------------------------------------------------------------------
+# Weights
+# ------------------------------------------------------------------------------------------------
+
+
+def write_combined_weights(mesh_obj, bone_names, joints, weights):
+    """Write combined weights (#V by K joints indexing bone_names, -1 = empty; #V by K weights) as one
+    vertex group per name, replacing groups of those names. Returns the groups (in bone_names order)."""
+    if mesh_obj is None or mesh_obj.type != 'MESH':
+        raise ValueError(f"write_combined_weights: {getattr(mesh_obj, 'name', None)!r} is not a mesh object")
+    bone_names = [str(n) for n in bone_names]
+    joints, weights = _check_weights(bone_names, joints, weights)
+    if joints.shape[0] != len(mesh_obj.data.vertices):
+        raise ValueError(f"write_combined_weights: {joints.shape[0]} weight rows for "
+                         f"{len(mesh_obj.data.vertices)} vertices of '{mesh_obj.name}'")
+    wanted = set(bone_names)
+    for g in [g for g in mesh_obj.vertex_groups if g.name in wanted]:
+        mesh_obj.vertex_groups.remove(g)
+    return blender_io.write_vertex_weights(mesh_obj, bone_names, joints, weights)
+
+
+def read_combined_weights(mesh_obj, bone_names):
+    """(#V by K int32 indices into bone_names, #V by K float64 weights), strongest first, from the vertex
+    groups named in bone_names (other groups are ignored)."""
+    index = {str(n): i for i, n in enumerate(bone_names)}
+    group_to_bone = {g.index: index[g.name] for g in mesh_obj.vertex_groups if g.name in index}
+    return blender_io.read_vertex_weights(mesh_obj, group_to_bone, len(mesh_obj.data.vertices))
+
+
+# ------------------------------------------------------------------------------------------------
+# Pose
+# ------------------------------------------------------------------------------------------------
+
+
+def pose_bone_matrices(armature_obj, bone_names=None):
+    """#N by 4 by 4 PoseBone.matrix (armature space, as of the last evaluation) of bone_names (default:
+    every bone, in pose.bones order). foreach_get gives column-major matrices."""
+    _require_armature(armature_obj, "pose_bone_matrices")
+    pose_bones = armature_obj.pose.bones
+    flat = np.empty(len(pose_bones) * 16, dtype=np.float32)
+    pose_bones.foreach_get("matrix", flat)
+    m = flat.reshape(-1, 4, 4).transpose(0, 2, 1).astype(np.float64)
+    if bone_names is None:
+        return m
+    idx = []
+    for n in bone_names:
+        i = pose_bones.find(n)
+        if i < 0:
+            raise ValueError(f"pose_bone_matrices: no bone '{n}' in '{armature_obj.name}'")
+        idx.append(i)
+    return m[idx]
+
+
+def _local_bases(armature_obj, names, joint_matrices, parent_matrices):
+    """matrix_basis of each joint so that its posed matrix is joint_matrices[j]: Blender poses a child as
+    parent_pose @ parent_rest^-1 @ rest @ basis (full inheritance)."""
+    bones = armature_obj.data.bones
+    rest = blender_io.bone_rest_matrices(bones)
+    posed = None
+    bases = np.empty((len(names), 4, 4))
+    for j, n in enumerate(names):
+        i = bones.find(n)
+        if i < 0:
+            raise ValueError(f"write_joint_matrices: no bone '{n}' in '{armature_obj.name}'")
+        parent = bones[i].parent
+        if parent is None:
+            to_local = np.linalg.inv(rest[i])
+        else:
+            p = bones.find(parent.name)
+            if parent_matrices is not None and parent.name in parent_matrices:
+                parent_pose = np.asarray(parent_matrices[parent.name], dtype=np.float64)
+            else:
+                if posed is None:
+                    posed = pose_bone_matrices(armature_obj)
+                parent_pose = posed[p]
+            to_local = np.linalg.inv(rest[i]) @ rest[p] @ np.linalg.inv(parent_pose)
+        bases[j] = to_local @ joint_matrices[j]
+    return bases
+
+
+def write_joint_matrices(armature_obj, joint_names, joint_matrices, parent_matrices=None):
+    """Pose the muscle-joint bones so that PoseBone.matrix == joint_matrices[j] (#J by 4 by 4, armature space;
+    rotation times a scale in the joint's own axes, e.g. diag(s, lambda, s)). The parents' posed matrices
+    come from parent_matrices ({bone name: 4 by 4}, e.g. the skeleton pose the joints were computed from;
+    exact and free of evaluation lag) or else from the pose as last evaluated. Writes matrix_basis of all
+    pose bones with one foreach_set when every other bone uses quaternion rotation (their values are
+    written back unchanged), else bone by bone; then update_tag()."""
+    _require_armature(armature_obj, "write_joint_matrices")
+    names = [str(n) for n in joint_names]
+    matrices = _matrices(joint_matrices, len(names), "joint_matrices")
+    bases = _local_bases(armature_obj, names, matrices, parent_matrices)
+    pose_bones = armature_obj.pose.bones
+    index = [pose_bones.find(n) for n in names]
+    joint_set = set(index)
+    others_quaternion = all(pb.rotation_mode == 'QUATERNION' for i, pb in enumerate(pose_bones) if i not in joint_set)
+    if others_quaternion and len(pose_bones) > 1:
+        flat = np.empty(len(pose_bones) * 16, dtype=np.float32)
+        pose_bones.foreach_get("matrix_basis", flat)
+        all_bases = flat.reshape(-1, 4, 4)
+        all_bases[index] = bases.transpose(0, 2, 1).astype(np.float32)  # column-major per matrix
+        pose_bones.foreach_set("matrix_basis", all_bases.ravel())
+    else:
+        for i, basis in zip(index, bases):
+            pose_bones[i].matrix_basis = Matrix(basis.tolist())
+    armature_obj.update_tag()

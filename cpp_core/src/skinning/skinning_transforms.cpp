@@ -1,0 +1,26 @@
+// Combined skinning transforms: skeleton bones, then muscle joints (joint * bind^-1).
+#include "myoskin/errors.h"
+#include "myoskin/skinning.h"
+
+namespace myoskin {
+
+void skinningTransforms(const Skeleton& skeleton, const Pose& pose, const MuscleRig& rig,
+                        const MuscleRigState& state, std::vector<Mat4>& transforms) {
+  std::vector<Mat4> bones;
+  skeletonTransforms(skeleton, pose, bones);
+  const int nb = skeleton.numBones(), nj = rig.numJoints();
+  if (static_cast<int>(state.jointMatrices.size()) != nj)
+    throw InputError("skinning: rig state has " + std::to_string(state.jointMatrices.size()) +
+                     " joint matrices for " + std::to_string(nj) + " muscle joints");
+  transforms.resize(static_cast<size_t>(nb) + nj);
+  for (int b = 0; b < nb; ++b) transforms[b] = bones[b];
+  const std::vector<Mat4>& bind = rig.bindMatrices();
+  for (int j = 0; j < nj; ++j) {
+    if (!state.jointMatrices[j].allFinite())
+      throw InputError("skinning: muscle joint " + std::to_string(j) + " '" + rig.jointNames()[j] +
+                       "' has a NaN or infinite matrix");
+    transforms[nb + j] = state.jointMatrices[j] * bind[j].inverse();
+  }
+}
+
+}  // namespace myoskin

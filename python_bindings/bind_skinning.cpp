@@ -1,0 +1,291 @@
+// Hybrid skinning: the Equation 3 skinner, transforms, quality measures and PC2 point caches.
+// Arrays are checked here so a wrong shape is a ValueError naming the argument (never a crash); long
+// calls release the GIL.
+#include <memory>
+
+#include "bindings.h"
+#include "myoskin/character.h"
+#include "myoskin/errors.h"
+#include "myoskin/skinning.h"
+
+namespace myoskin::python {
+
+namespace {
+
+using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+using IntArray = py::array_t<int32_t, py::array::c_style | py::array::forcecast>;
+using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
+
+std::string shapeOf(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t i = 0; i < a.ndim(); ++i) s += (i ? ", " : "") + std::to_string(a.shape(i));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+// #N by 3 float64 points from any array of that shape.
+Points pointsArg(const DoubleArray& a, const char* name) {
+  if (a.ndim() != 2 || a.shape(1) != 3)
+    throw InputError(std::string(name) + " must be #N by 3, got shape " + shapeOf(a));
+  Points p(a.shape(0), 3);
+  std::copy(a.data(), a.data() + a.size(), p.data());
+  return p;
+}
+
+Triangles trianglesArg(const IntArray& a, const char* name, Eigen::Index numVertices) {
+  if (a.ndim() != 2 || a.shape(1) != 3)
+    throw InputError(std::string(name) + " must be #F by 3, got shape " + shapeOf(a));
+  Triangles t(a.shape(0), 3);
+  std::copy(a.data(), a.data() + a.size(), t.data());
+  for (Eigen::Index i = 0; i < t.size(); ++i)
+    if (t.data()[i] < 0 || t.data()[i] >= numVertices)
+      throw InputError(std::string(name) + ": triangle " + std::to_string(i / 3) + " uses vertex " +
+                       std::to_string(t.data()[i]) + ", outside 0.." + std::to_string(numVertices - 1));
+  return t;
+}
+
+// #N by 4 by 4 matrices (float64).
+std::vector<Mat4> matricesArg(const DoubleArray& a, const char* name) {
+  if (a.ndim() != 3 || a.shape(1) != 4 || a.shape(2) != 4)
+    throw InputError(std::string(name) + " must be #N by 4 by 4, got shape " + shapeOf(a));
+  std::vector<Mat4> out(a.shape(0));
+  auto r = a.unchecked<3>();
+  for (py::ssize_t i = 0; i < a.shape(0); ++i)
+    for (int j = 0; j < 4; ++j)
+      for (int k = 0; k < 4; ++k) out[i](j, k) = r(i, j, k);
+  return out;
+}
+
+py::array_t<double> matricesOut(const std::vector<Mat4>& m) {
+  py::array_t<double> out({static_cast<py::ssize_t>(m.size()), py::ssize_t(4), py::ssize_t(4)});
+  auto w = out.mutable_unchecked<3>();
+  for (size_t i = 0; i < m.size(); ++i)
+    for (int j = 0; j < 4; ++j)
+      for (int k = 0; k < 4; ++k) w(i, j, k) = m[i](j, k);
+  return out;
+}
+
+// #V by K joints + weights (the same shape; 1-D arrays are one influence per vertex).
+SkinWeights weightsArg(const IntArray& joints, const DoubleArray& weights, Eigen::Index numVertices) {
+  auto cols = [](const py::array& a) { return a.ndim() == 1 ? py::ssize_t(1) : a.shape(1); };
+  if (joints.ndim() < 1 || joints.ndim() > 2 || weights.ndim() < 1 || weights.ndim() > 2)
+    throw InputError("weight_joints and weight_values must be #V by K, got shapes " + shapeOf(joints) + " and " +
+                     shapeOf(weights));
+  if (joints.shape(0) != weights.shape(0) || cols(joints) != cols(weights))
+    throw InputError("weight_joints " + shapeOf(joints) + " and weight_values " + shapeOf(weights) +
+                     " must have the same shape");
+  if (joints.shape(0) != numVertices)
+    throw InputError("weights have " + std::to_string(joints.shape(0)) + " rows for " + std::to_string(numVertices) +
+                     " vertices");
+  SkinWeights w;
+  w.joints.resize(joints.shape(0), cols(joints));
+  w.weights.resize(weights.shape(0), cols(weights));
+  std::copy(joints.data(), joints.data() + joints.size(), w.joints.data());
+  std::copy(weights.data(), weights.data() + weights.size(), w.weights.data());
+  return w;
+}
+
+Pose poseArg(const Character& c, const DoubleArray& poseMatrices) {
+  Pose pose;
+  pose.matrices = matricesArg(poseMatrices, "pose_matrices");
+  if (static_cast<int>(pose.matrices.size()) != c.skeleton.numBones())
+    throw InputError("pose_matrices has " + std::to_string(pose.matrices.size()) + " matrices for " +
+                     std::to_string(c.skeleton.numBones()) + " bones");
+  return pose;
+}
+
+py::array_t<float> newPointsF(int n) { return py::array_t<float>({static_cast<py::ssize_t>(n), py::ssize_t(3)}); }
+
+}  // namespace
+
+void bindSkinning(py::module_& m) {
+  // ==========================================================================
+  // Skinner
+  // ==========================================================================
+  py::class_<Skinner, std::shared_ptr<Skinner>>(
+      m, "Skinner",
+      "Equation 3 skinner built once from rest vertices and sparse weights (Blender's Armature modifier "
+      "semantics: normalised at deform time, weight sum <= 1e-4 stays at rest); deform() per frame.")
+      .def(py::init([](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, int numJoints,
+                       int grainSize, int threads) {
+             const Points p = pointsArg(rest, "rest_vertices");
+             const SkinWeights w = weightsArg(joints, weights, p.rows());
+             py::gil_scoped_release release;
+             return std::make_shared<Skinner>(p, w, numJoints, SkinnerOptions{grainSize, threads});
+           }),
+           py::arg("rest_vertices"), py::arg("weight_joints"), py::arg("weight_values"), py::arg("num_joints"),
+           py::arg("grain_size") = SkinnerOptions{}.grainSize, py::arg("threads") = SkinnerOptions{}.threads,
+           "rest_vertices #V by 3, weight_joints/weight_values #V by K (joint -1 = empty slot) over num_joints "
+           "combined joints. ValueError names the offending vertex and slot.")
+      .def(
+          "deform",
+          [](const Skinner& s, const DoubleArray& transforms) {
+            const std::vector<Mat4> t = matricesArg(transforms, "transforms");
+            py::array_t<float> out = newPointsF(s.numVertices());
+            float* data = out.mutable_data();
+            {
+              py::gil_scoped_release release;
+              s.deform(t, data);
+            }
+            return out;
+          },
+          py::arg("transforms"), "transforms: #J by 4 by 4 skinning transforms -> #V by 3 float32 positions.")
+      .def(
+          "deform_into",
+          [](const Skinner& s, const DoubleArray& transforms, py::array_t<float> out) {
+            if (out.ndim() != 2 || out.shape(0) != s.numVertices() || out.shape(1) != 3 ||
+                !(out.flags() & py::array::c_style) || !out.writeable())
+              throw InputError("out must be a writeable C-contiguous float32 array of shape (" +
+                               std::to_string(s.numVertices()) + ", 3), got " + shapeOf(out));
+            const std::vector<Mat4> t = matricesArg(transforms, "transforms");
+            float* data = out.mutable_data();
+            py::gil_scoped_release release;
+            s.deform(t, data);
+          },
+          py::arg("transforms"), py::arg("out"), "Like deform, into a preallocated #V by 3 float32 array.")
+      .def_property_readonly("num_vertices", &Skinner::numVertices)
+      .def_property_readonly("num_joints", &Skinner::numJoints)
+      .def_property_readonly("influences", &Skinner::influences, "packed influence slots per vertex")
+      .def_property_readonly("rest_vertices", &Skinner::restVertices, "vertices left at rest (weight sum <= 1e-4)")
+      .def_property_readonly("bytes_per_frame", &Skinner::bytesPerFrame)
+      .def_property(
+          "threads", [](const Skinner& s) { return s.options().threads; },
+          [](Skinner& s, int t) { s.setOptions({s.options().grainSize, t}); })
+      .def_property(
+          "grain_size", [](const Skinner& s) { return s.options().grainSize; },
+          [](Skinner& s, int g) { s.setOptions({g, s.options().threads}); });
+
+  m.def(
+      "skin",
+      [](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, const DoubleArray& transforms) {
+        const Points p = pointsArg(rest, "rest_vertices");
+        const SkinWeights w = weightsArg(joints, weights, p.rows());
+        const std::vector<Mat4> t = matricesArg(transforms, "transforms");
+        py::gil_scoped_release release;
+        return skin(p, w, t);
+      },
+      py::arg("rest_vertices"), py::arg("weight_joints"), py::arg("weight_values"), py::arg("transforms"),
+      "One-shot Equation 3: #V by 3 float64 positions for #J by 4 by 4 skinning transforms.");
+
+  // ==========================================================================
+  // Poses and transforms
+  // ==========================================================================
+  m.def(
+      "pose_from_local_rotations",
+      [](const Character& c, const DoubleArray& rotations) {
+        if (rotations.ndim() != 2 || rotations.shape(1) != 4)
+          throw InputError("rotations must be #B by 4 quaternions (w, x, y, z), got shape " + shapeOf(rotations));
+        if (rotations.shape(0) != c.skeleton.numBones())
+          throw InputError("rotations has " + std::to_string(rotations.shape(0)) + " rows for " +
+                           std::to_string(c.skeleton.numBones()) + " bones");
+        auto r = rotations.unchecked<2>();
+        std::vector<Eigen::Quaterniond> q;
+        for (py::ssize_t b = 0; b < rotations.shape(0); ++b) {
+          const Eigen::Quaterniond qb(r(b, 0), r(b, 1), r(b, 2), r(b, 3));
+          if (!qb.coeffs().allFinite() || qb.norm() < 1e-12)
+            throw InputError("rotations: row " + std::to_string(b) + " is not a usable quaternion");
+          q.push_back(qb);
+        }
+        return matricesOut(poseFromLocalRotations(c.skeleton, q).matrices);
+      },
+      py::arg("character"), py::arg("rotations"),
+      "#B by 4 by 4 posed bone matrices (mesh space, like PoseBone.matrix) from per-bone local rotations "
+      "(#B by 4 quaternions w, x, y, z, like PoseBone.rotation_quaternion).");
+  m.def(
+      "rest_pose", [](const Character& c) { return matricesOut(restPose(c.skeleton).matrices); }, py::arg("character"),
+      "#B by 4 by 4 posed matrices of the rest pose (the rest matrices).");
+  m.def(
+      "skeleton_transforms",
+      [](const Character& c, const DoubleArray& poseMatrices) {
+        std::vector<Mat4> t;
+        skeletonTransforms(c.skeleton, poseArg(c, poseMatrices), t);
+        return matricesOut(t);
+      },
+      py::arg("character"), py::arg("pose_matrices"),
+      "#B by 4 by 4 skinning transforms pose_i * rest_i^-1 (plain LBS) for #B by 4 by 4 posed matrices.");
+
+  // ==========================================================================
+  // Quality measures
+  // ==========================================================================
+  m.def(
+      "vertex_normals",
+      [](const DoubleArray& vertices, const IntArray& triangles) {
+        const Points v = pointsArg(vertices, "vertices");
+        return vertexNormals(v, trianglesArg(triangles, "triangles", v.rows()));
+      },
+      py::arg("vertices"), py::arg("triangles"), "#V by 3 unit area-weighted vertex normals.");
+  m.def(
+      "enclosed_volume",
+      [](const DoubleArray& vertices, const IntArray& triangles) {
+        const Points v = pointsArg(vertices, "vertices");
+        return enclosedVolume(v, trianglesArg(triangles, "triangles", v.rows()));
+      },
+      py::arg("vertices"), py::arg("triangles"), "Signed enclosed volume (m^3) of a closed outward-oriented mesh.");
+  m.def(
+      "region_volume_change",
+      [](const DoubleArray& rest, const DoubleArray& deformed, const IntArray& triangles, const IntArray& labels,
+         int numRegions) {
+        const Points r = pointsArg(rest, "rest"), d = pointsArg(deformed, "deformed");
+        if (labels.ndim() != 1) throw InputError("labels must be #V, got shape " + shapeOf(labels));
+        IndexVector l(labels.shape(0));
+        std::copy(labels.data(), labels.data() + labels.size(), l.data());
+        return regionVolumeChange(r, d, trianglesArg(triangles, "triangles", r.rows()), l, numRegions);
+      },
+      py::arg("rest"), py::arg("deformed"), py::arg("triangles"), py::arg("labels"), py::arg("num_regions"),
+      "Per-region relative volume change; labels #V in [-1, num_regions) (a triangle counts when its three "
+      "vertices share a label).");
+  m.def(
+      "local_bulge",
+      [](const DoubleArray& rest, const IntArray& triangles, const DoubleArray& deformed, const IntArray& joints,
+         const DoubleArray& weights, const DoubleArray& skeletonTransforms) {
+        const Points r = pointsArg(rest, "rest"), d = pointsArg(deformed, "deformed");
+        const SkinWeights w = weightsArg(joints, weights, r.rows());
+        return localBulge(r, trianglesArg(triangles, "triangles", r.rows()), d, w,
+                          matricesArg(skeletonTransforms, "skeleton_transforms"));
+      },
+      py::arg("rest"), py::arg("triangles"), py::arg("deformed"), py::arg("weight_joints"), py::arg("weight_values"),
+      py::arg("skeleton_transforms"),
+      "#V displacement along the rest normal after undoing each vertex's dominant skeleton bone (plain LBS ~0 "
+      "on rigid parts, > 0 where muscles bulge).");
+
+  // ==========================================================================
+  // PC2
+  // ==========================================================================
+  m.def(
+      "write_pc2",
+      [](const std::string& path, const FloatArray& frames, float startFrame, float sampleRate) {
+        if (frames.ndim() != 3 || frames.shape(2) != 3 || frames.shape(0) < 1)
+          throw InputError("frames must be #frames by #V by 3 with at least one frame, got shape " + shapeOf(frames));
+        const float* data = frames.data();
+        const int nv = static_cast<int>(frames.shape(1));
+        const py::ssize_t nf = frames.shape(0);
+        py::gil_scoped_release release;
+        PC2Writer w(path, nv, startFrame, sampleRate);
+        for (py::ssize_t f = 0; f < nf; ++f) w.writeFrame(data + f * 3 * nv);
+        w.close();
+      },
+      py::arg("path"), py::arg("frames"), py::arg("start_frame") = 0.0f, py::arg("sample_rate") = 1.0f,
+      "Write #frames by #V by 3 positions as a PC2 point cache (Blender's Mesh Cache modifier).");
+  m.def(
+      "read_pc2",
+      [](const std::string& path) {
+        PointCache c;
+        {
+          py::gil_scoped_release release;
+          c = readPC2(path);
+        }
+        py::array_t<float> frames(
+            {static_cast<py::ssize_t>(c.frames.size()), static_cast<py::ssize_t>(c.numPoints), py::ssize_t(3)});
+        float* out = frames.mutable_data();
+        for (size_t f = 0; f < c.frames.size(); ++f)
+          std::copy(c.frames[f].data(), c.frames[f].data() + 3 * c.numPoints, out + f * 3 * c.numPoints);
+        py::dict d;
+        d["frames"] = frames;
+        d["start_frame"] = c.startFrame;
+        d["sample_rate"] = c.sampleRate;
+        d["num_points"] = c.numPoints;
+        return d;
+      },
+      py::arg("path"), "dict(frames #frames by #V by 3 float32, start_frame, sample_rate, num_points).");
+}
+
+}  // namespace myoskin::python
