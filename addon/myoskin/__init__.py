@@ -19,7 +19,7 @@ bl_info = {
 
 import bpy  # noqa: E402
 
-from . import core_loader, handlers, operators, panels, preferences, state  # noqa: E402,F401
+from . import core_loader, handlers, live, operators, panels, preferences, state  # noqa: E402,F401
 
 classes = (*state.classes, *preferences.classes, *operators.classes, *panels.classes)
 
@@ -29,11 +29,13 @@ def register():
         bpy.utils.register_class(cls)
     state.register()
     handlers.register()
+    live.register()
     if not core_loader.available():
         print(f"Myoskin: {core_loader.status().message}")
 
 
 def unregister():
+    live.unregister()
     handlers.unregister()
     state.unregister()
     for cls in reversed(classes):

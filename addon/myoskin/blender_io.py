@@ -181,7 +181,8 @@ def read_vertex_weights(mesh_obj, group_to_bone, num_vertices):
 
 def character_from_blender(mesh_obj, armature_obj=None, name=None):
     """A core Character from a skinned mesh object and its armature, at rest, in the armature's space
-    (see the module docstring). Weights come from vertex groups named after deform bones."""
+    (see the module docstring). Weights come from vertex groups named after deform bones; muscle-joint
+    bones (tagged "myoskin_joint") and their groups are left out, so the skeleton is the character's own."""
     core = core_loader.core()
     if mesh_obj is None or mesh_obj.type != 'MESH':
         raise ValueError(f"character_from_blender: {getattr(mesh_obj, 'name', None)!r} is not a mesh object")
@@ -196,7 +197,8 @@ def character_from_blender(mesh_obj, armature_obj=None, name=None):
     vertices = _transform_points(mesh_to_armature_matrix(mesh_obj, armature_obj), mesh_vertices(mesh))
     triangles = mesh_triangles(mesh)
 
-    order = bone_order(bones)
+    # Muscle-joint bones (rig_io tags them "myoskin_joint") are not part of the skeleton.
+    order = [i for i in bone_order(bones) if not bones[i].get("myoskin_joint")]
     position = {old: new for new, old in enumerate(order)}
     names = [bones[i].name for i in order]
     parents = np.array([position[bones.find(bones[i].parent.name)] if bones[i].parent else -1 for i in order],

@@ -1,0 +1,147 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Myoskin in batch (background) mode: extract, bind, bake and export without the UI.
+
+    blender -b character.blend --python-exit-code 1 -P addon/myoskin/batch.py -- \\
+        extract --bind --bake 1-120 -o out.blend
+    blender -b --python-exit-code 1 -P addon/myoskin/batch.py -- \\
+        --input character.glb extract --bind --bake 1-120 --gltf out.glb --pc2 skin.pc2 -o out.blend
+
+Steps run in this order, each optional: import (--input .glb/.gltf/.blend), extract, --bind, --bake A-B
+(muscle joints keyed into the armature's Action), --pc2 FILE (the skin over the bake range, computed by the
+core), --gltf FILE (skin + armature + helper bones + Actions), -o FILE.blend. The add-on must be findable
+(BLENDER_USER_SCRIPTS=<build>/blender_scripts, or installed); it is enabled here when it is not. Errors
+print one line "myoskin batch: error: ..." and exit with status 1 (with --python-exit-code 1 for Python
+exceptions too).
+"""
+import argparse
+import os
+import sys
+import time
+
+import bpy
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(prog="batch.py", description="Myoskin batch: extract, bind, bake, export")
+    p.add_argument("command", nargs="?", choices=("extract", "none"), default="none",
+                   help="extract: (re-)extract the muscles; none: use the muscles already in the file")
+    p.add_argument("--input", "-i", help="a .blend, .glb or .gltf to open first (default: the open file)")
+    p.add_argument("--object", help="the skinned mesh (default: the only mesh with an armature)")
+    p.add_argument("--spacing", type=float, default=0.0, help="section spacing in metres (0 = automatic)")
+    p.add_argument("--min-confidence", type=float, default=0.6)
+    p.add_argument("--bind", action="store_true", help="bind the muscles to the armature")
+    p.add_argument("--bake", metavar="A-B", help="bake the muscle joints to keyframes over frames A-B")
+    p.add_argument("--pc2", metavar="FILE", help="bake the skin to a PC2 cache (needs --bind and --bake)")
+    p.add_argument("--gltf", metavar="FILE", help="export skin + armature + helper bones to glTF")
+    p.add_argument("-o", "--output", metavar="FILE.blend", help="save the result")
+    return p.parse_args(argv)
+
+
+def fail(message):
+    print(f"myoskin batch: error: {message}", file=sys.stderr, flush=True)
+    sys.exit(1)
+
+
+def log(message, start=[time.perf_counter()]):  # noqa: B006 (process start)
+    print(f"[myoskin batch {time.perf_counter() - start[0]:6.1f} s] {message}", flush=True)
+
+
+def ensure_addon():
+    import addon_utils
+    if "myoskin" not in bpy.context.preferences.addons:
+        try:
+            addon_utils.enable("myoskin", default_set=True, handle_error=lambda e: (_ for _ in ()).throw(e))
+        except Exception as e:  # noqa: BLE001
+            fail(f"cannot enable the myoskin add-on ({e}): set BLENDER_USER_SCRIPTS=<build>/blender_scripts")
+    from myoskin import core_loader
+    if not core_loader.available():
+        fail(core_loader.status().message)
+
+
+def open_input(path):
+    path = os.path.abspath(path)
+    if not os.path.isfile(path):
+        fail(f"no such file: {path}")
+    ext = os.path.splitext(path)[1].lower()
+    if ext == ".blend":
+        bpy.ops.wm.open_mainfile(filepath=path)
+    elif ext in (".glb", ".gltf"):
+        from myoskin.operators.rig import numpy_bool_for_gltf
+        bpy.ops.wm.read_homefile(use_empty=True)
+        numpy_bool_for_gltf()
+        bpy.ops.import_scene.gltf(filepath=path)
+    else:
+        fail(f"unsupported input {path}: give a .blend, .glb or .gltf")
+    log(f"opened {path}")
+
+
+def find_skin(name):
+    from myoskin import blender_io
+    if name:
+        obj = bpy.data.objects.get(name)
+        if obj is None:
+            fail(f"no object '{name}'")
+        return obj
+    skins = [o for o in bpy.context.scene.objects if o.type == 'MESH' and blender_io.find_armature(o) is not None
+             and o.get("myoskin_muscle") is None]
+    if len(skins) != 1:
+        fail(f"{len(skins)} skinned meshes in the scene ({', '.join(o.name for o in skins)}): pick one with --object")
+    return skins[0]
+
+
+def run_op(op, **kwargs):
+    """Call an operator; its ERROR report becomes a batch failure."""
+    try:
+        result = op(**kwargs)
+    except RuntimeError as e:
+        fail(str(e).replace("Error: ", "").strip())
+    if result != {'FINISHED'}:
+        fail(f"{op.idname()} returned {result}")
+
+
+def parse_range(text):
+    try:
+        a, b = (int(x) for x in text.split("-"))
+    except ValueError:
+        fail(f"--bake wants A-B (e.g. 1-120), got {text!r}")
+    if b < a:
+        fail(f"--bake range {text} is empty")
+    return a, b
+
+
+def main(argv):
+    args = parse_args(argv)
+    ensure_addon()
+    if args.input:
+        open_input(args.input)
+    skin = find_skin(args.object)
+    bpy.context.view_layer.objects.active = skin
+    state = __import__("myoskin.blender_io", fromlist=["x"]).find_armature(skin).myoskin
+    if args.command == "extract":
+        if state.bound:
+            run_op(bpy.ops.myoskin.unbind)
+        run_op(bpy.ops.myoskin.extract_muscles, spacing=args.spacing, min_confidence=args.min_confidence)
+        log(f"extracted {len(state.muscles)} muscles from {skin.name}")
+    if args.bind:
+        run_op(bpy.ops.myoskin.bind)
+        log(f"bound: {len(state.muscles)} muscles")
+    frames = parse_range(args.bake) if args.bake else None
+    if frames:
+        run_op(bpy.ops.myoskin.bake_action, frame_start=frames[0], frame_end=frames[1])
+        log(f"baked muscle joints over frames {frames[0]}-{frames[1]}")
+    if args.pc2:
+        if not frames:
+            fail("--pc2 needs --bake A-B for its frame range")
+        run_op(bpy.ops.myoskin.bake_pc2, filepath=os.path.abspath(args.pc2), frame_start=frames[0],
+               frame_end=frames[1])
+        log(f"wrote {args.pc2}")
+    if args.gltf:
+        run_op(bpy.ops.myoskin.export_gltf, filepath=os.path.abspath(args.gltf))
+        log(f"wrote {args.gltf}")
+    if args.output:
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.output))
+        log(f"saved {args.output}")
+
+
+if __name__ == "__main__":
+    main(sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else [])
