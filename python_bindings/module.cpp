@@ -33,4 +33,5 @@ PYBIND11_MODULE(_core, m) {
   myoskin::python::bindMuscles(m);
   myoskin::python::bindGenerate(m);
   myoskin::python::bindExtraction(m);
+  myoskin::python::bindDeformation(m);
 }
