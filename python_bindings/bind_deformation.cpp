@@ -1,4 +1,7 @@
 // Muscle deformation: MuscleRig (action paths, bulge, muscle joints) and pose helpers.
+#include <memory>
+#include <mutex>
+
 #include "bindings.h"
 #include "myoskin/character.h"
 #include "myoskin/deformation.h"
@@ -6,14 +9,26 @@
 
 namespace myoskin::python {
 
+namespace {
+
+// The rig plus its evaluation state, reused across evaluate() calls (no per-frame allocation in the core);
+// the mutex serialises callers, since evaluate runs without the GIL.
+struct PyMuscleRig : MuscleRig {
+  using MuscleRig::MuscleRig;
+  MuscleRigState state = makeState();
+  std::mutex mutex;
+};
+
+}  // namespace
+
 void bindDeformation(py::module_& m) {
-  py::class_<MuscleRig>(m, "MuscleRig",
+  py::class_<PyMuscleRig>(m, "MuscleRig",
                         "Muscles on a skeleton: built once, then evaluate(pose) gives every muscle joint's matrix "
                         "(mesh space; Y = path tangent; translation * rotation * diag(s, stretch, s)).")
       .def(py::init([](const Character& c, const std::vector<Muscle>& muscles, int jointsOverride) {
              MuscleRigOptions o;
              o.jointsOverride = jointsOverride;
-             return MuscleRig(c.skeleton, muscles, o);
+             return std::make_unique<PyMuscleRig>(c.skeleton, muscles, o);
            }),
            py::arg("character"), py::arg("muscles"), py::arg("joints_override") = 0,
            "Raises ValueError naming the muscle: unknown bones, origin = insertion, bad wrap radius, "
@@ -21,11 +36,11 @@ void bindDeformation(py::module_& m) {
       .def_property_readonly("num_muscles", &MuscleRig::numMuscles)
       .def_property_readonly("num_joints", &MuscleRig::numJoints)
       .def_property_readonly("joint_names", &MuscleRig::jointNames)
-      .def_property_readonly("joint_muscle", [](const MuscleRig& r) { return IndexVector(Eigen::Map<const Eigen::VectorXi>(r.jointMuscle().data(), r.numJoints()).cast<int32_t>()); })
-      .def_property_readonly("joint_parent_bone", [](const MuscleRig& r) { return IndexVector(Eigen::Map<const Eigen::VectorXi>(r.jointParentBone().data(), r.numJoints()).cast<int32_t>()); })
-      .def_property_readonly("bind_matrices", [](const MuscleRig& r) { return matricesToArray(r.bindMatrices()); },
+      .def_property_readonly("joint_muscle", [](const PyMuscleRig& r) { return IndexVector(Eigen::Map<const Eigen::VectorXi>(r.jointMuscle().data(), r.numJoints()).cast<int32_t>()); })
+      .def_property_readonly("joint_parent_bone", [](const PyMuscleRig& r) { return IndexVector(Eigen::Map<const Eigen::VectorXi>(r.jointParentBone().data(), r.numJoints()).cast<int32_t>()); })
+      .def_property_readonly("bind_matrices", [](const PyMuscleRig& r) { return matricesToArray(r.bindMatrices()); },
                              "#J by 4 by 4 rest joint matrices (rigid): a Blender bone's matrix_local")
-      .def_property_readonly("rest_lengths", [](const MuscleRig& r) {
+      .def_property_readonly("rest_lengths", [](const PyMuscleRig& r) {
         return Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(r.restLengths().data(), r.numMuscles()));
       })
       .def("joint_offset", &MuscleRig::jointOffset, py::arg("muscle"))
@@ -33,20 +48,20 @@ void bindDeformation(py::module_& m) {
       .def_property_readonly("muscles", &MuscleRig::muscles)
       .def(
           "rest_surface",
-          [](const MuscleRig& r, int i) {
+          [](const PyMuscleRig& r, int i) {
             if (i < 0 || i >= r.numMuscles()) throw InputError("rest_surface: no muscle " + std::to_string(i));
             return py::make_tuple(r.restSurface(i).vertices, r.restSurface(i).triangles);
           },
           py::arg("muscle"), "(vertices #V by 3, triangles #F by 3) of the surface evaluate() deforms")
       .def(
           "evaluate",
-          [](const MuscleRig& r, const MatrixStack& poseMatrices, bool withSurfaces) {
+          [](PyMuscleRig& r, const MatrixStack& poseMatrices, bool withSurfaces) {
             const Pose pose = poseFromArray(poseMatrices, r.skeleton().numBones());
-            MuscleRigState state = r.makeState();
-            {
-              py::gil_scoped_release release;
-              r.evaluate(pose, state, withSurfaces);
-            }
+            py::gil_scoped_release release;
+            std::lock_guard<std::mutex> lock(r.mutex);
+            r.evaluate(pose, r.state, withSurfaces);
+            py::gil_scoped_acquire acquire;
+            const MuscleRigState& state = r.state;
             py::dict d;
             d["joint_matrices"] = matricesToArray(state.jointMatrices);
             d["length"] = Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(state.length.data(), r.numMuscles()));
@@ -64,7 +79,7 @@ void bindDeformation(py::module_& m) {
           "pose_matrices: #B by 4 by 4 posed bone matrices (Blender's PoseBone.matrix, armature space). Returns "
           "{'joint_matrices': #J by 4 by 4, 'length': #M, 'stretch': #M, 'wrapped': [bool] * #M, "
           "'surfaces': [#V_m by 3] when with_surfaces}. ValueError on a wrong size or NaN.")
-      .def("__repr__", [](const MuscleRig& r) {
+      .def("__repr__", [](const PyMuscleRig& r) {
         return "<myoskin.MuscleRig: " + std::to_string(r.numMuscles()) + " muscles, " + std::to_string(r.numJoints()) +
                " joints>";
       });

@@ -100,3 +100,15 @@ def test_makehuman_muscles_rig_and_follow_a_pose(core):
     assert np.isfinite(out["joint_matrices"]).all()
     print(f"makehuman_muscular_male: {rig.num_muscles} muscles, {rig.num_joints} joints, "
           f"stretch range {out['stretch'].min():.3f}-{out['stretch'].max():.3f}")
+
+
+def test_results_are_copies_and_deterministic(core, arm_rig):
+    character, _, rig = arm_rig
+    a = rig.evaluate(elbow_pose(core, character, 1.0), with_surfaces=True)
+    keep = a["joint_matrices"].copy(), a["surfaces"][0].copy()
+    b = rig.evaluate(elbow_pose(core, character, 2.0), with_surfaces=True)
+    np.testing.assert_array_equal(a["joint_matrices"], keep[0])
+    np.testing.assert_array_equal(a["surfaces"][0], keep[1])
+    assert not np.allclose(b["joint_matrices"], a["joint_matrices"])
+    c = rig.evaluate(elbow_pose(core, character, 1.0), with_surfaces=True)
+    np.testing.assert_array_equal(c["joint_matrices"], keep[0])
