@@ -34,4 +34,5 @@ PYBIND11_MODULE(_core, m) {
   myoskin::python::bindGenerate(m);
   myoskin::python::bindExtraction(m);
   myoskin::python::bindSkinning(m);
+  myoskin::python::bindDeformation(m);
 }

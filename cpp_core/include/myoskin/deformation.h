@@ -63,6 +63,7 @@ class MuscleRig {
   const std::vector<Mat4>& bindMatrices() const;        // #J rest joint matrices (rigid: scale 1)
   const std::vector<double>& restLengths() const;       // #M rest action-path length
   const std::vector<Muscle>& muscles() const;
+  const Skeleton& skeleton() const;
   const Mesh& restSurface(int muscle) const;            // the surface evaluate() deforms (lofted if absent)
 
   // A state sized for this rig (allocates once).
