@@ -20,6 +20,8 @@
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
 #include "myoskin/io.h"
+#include "myoskin/pose_io.h"
+#include "myoskin/skinning.h"
 #include "myoskin/synthetic_character.h"
 
 using namespace myoskin;
@@ -65,7 +67,9 @@ void usage(std::ostream& out) {
          "                                                      (arm.obj, arm.skeleton.json, arm.truth.json)\n"
          "  extract CHARACTER -o muscles.json [--spacing M] [--min-confidence C] [--min-sections N]\n"
          "          [--max-per-region N] [--no-surfaces]       extract muscles from the skin\n"
-         "  deform CHARACTER --muscles M.json --pose P.json -o out.obj|out.pc2\n"
+         "  deform CHARACTER [--muscles M.json] --pose P.json -o out.obj|out.pc2 [--dominance D] [--threads N]\n"
+         "          skin a pose (.obj) or a sequence of poses (.pc2, Blender's Mesh Cache modifier); pose\n"
+         "          files: {\"bones\": {name: {\"rotation_quaternion\": [w,x,y,z]}}} or {\"frames\": [...]}\n"
          "CHARACTER is a .glb/.gltf, or an .obj with a <name>.skeleton.json beside it.\n";
 }
 
@@ -162,11 +166,49 @@ int cmdExtract(const Args& args) {
   return 0;
 }
 
-int cmdNotYet(const std::string& command, const Args& args) {
-  if (args.positional.empty()) throw InputError(command + " needs a CHARACTER file");
-  loadCharacter(args.positional[0]);  // bad input is still reported as bad input
-  std::fprintf(stderr, "myoskin: error: '%s' is not implemented yet in this build\n", command.c_str());
-  return 3;
+bool endsWith(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
+// Skin every frame of the pose file: .obj takes one pose, .pc2 takes the whole sequence.
+int cmdDeform(const Args& args) {
+  if (args.positional.size() != 1) throw InputError("deform needs exactly one CHARACTER file");
+  if (!args.options.count("--pose")) throw InputError("deform needs --pose P.json");
+  if (!args.options.count("--output")) throw InputError("deform needs -o out.obj or out.pc2");
+  const std::string out = args.options.at("--output");
+  const bool pc2 = endsWith(out, ".pc2");
+  if (!pc2 && !endsWith(out, ".obj")) throw InputError("deform: -o must end in .obj or .pc2, got '" + out + "'");
+  const auto skel = args.options.count("--skeleton") ? args.options.at("--skeleton") : std::string();
+  LoadOptions load;
+  load.requireWeights = true;
+  const Character c = loadCharacter(args.positional[0], load, skel);
+  const PoseSequence poses = readPoseJson(args.options.at("--pose"), c.skeleton);
+  if (args.options.count("--muscles")) throw InputError("deform: --muscles needs the muscle rig, not in this build yet");
+  if (!pc2 && poses.frames.size() != 1)
+    throw InputError("deform: the pose file has " + std::to_string(poses.frames.size()) +
+                     " frames; write them to a .pc2 (an .obj takes one pose)");
+  SkinnerOptions so;
+  so.threads = static_cast<int>(numberOption(args, "--threads", 0));
+  const Skinner skinner(c.mesh.vertices, c.weights, c.skeleton.numBones(), so);
+  std::vector<Mat4> transforms;
+  Points positions;
+  if (pc2) {
+    PC2Writer writer(out, c.mesh.numVertices(), static_cast<float>(poses.startFrame), 1.0f);
+    PointsF frame;
+    for (const Pose& pose : poses.frames) {
+      skeletonTransforms(c.skeleton, pose, transforms);
+      skinner.deform(transforms, frame);
+      writer.writeFrame(frame);
+    }
+    writer.close();
+  } else {
+    skeletonTransforms(c.skeleton, poses.frames[0], transforms);
+    skinner.deform(transforms, positions);
+    writeObj(out, positions, c.mesh.triangles);
+  }
+  std::printf("deformed %s (%d vertices, %d bones, skeleton only): %zu frame(s) -> %s\n", c.name.c_str(),
+              c.mesh.numVertices(), c.skeleton.numBones(), poses.frames.size(), out.c_str());
+  return 0;
 }
 
 }  // namespace
@@ -183,7 +225,8 @@ int main(int argc, char** argv) {
     if (command == "extract")
       return cmdExtract(parse(argc, argv, 2,
                               {"--output", "--skeleton", "--spacing", "--min-confidence", "--min-sections", "--max-per-region"}));
-    if (command == "deform") return cmdNotYet(command, parse(argc, argv, 2, {"--output", "--muscles", "--pose"}));
+    if (command == "deform")
+      return cmdDeform(parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads"}));
     std::fprintf(stderr, "myoskin: error: unknown command '%s' (try myoskin --help)\n", command.c_str());
     return 2;
   } catch (const InputError& e) {

@@ -30,14 +30,25 @@ constexpr double kRestWeightThreshold = 1e-4;
 
 struct HybridWeightOptions {
   double dominance = 1.0;                         // global muscle dominance in [0, 1] (0 = skeleton only)
-  std::map<std::string, double> muscleDominance;  // per muscle name, multiplies the global one
-  int maxInfluences = 8;                          // slots per vertex in the result
+  std::map<std::string, double> muscleDominance;  // per muscle name, multiplies the global one (>= 0)
+  int maxInfluences = 8;                          // slots per vertex in the result (>= 1)
+  // Influence of a muscle on a skin vertex from the vertex's distance d to the muscle's surface, in units
+  // of the muscle's mean section radius r: full up to fullDistance * r, falling smoothly to 0 at
+  // falloffDistance * r (so smooth skin away from every muscle gets none).
+  double fullDistance = 0.35;
+  double falloffDistance = 1.5;
+  int smoothingIterations = 4;   // Laplacian smoothing passes of each muscle's weight over the skin
 };
 
-// Skeleton weights (#V by K over bones) blended with muscle-joint weights into combined joints; every
-// row sums to 1 where the skeleton row did. Throws InputError on mismatched sizes.
-SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWeights, const MuscleRig& rig,
-                                 const HybridWeightOptions& options = {});
+// Combined weights (#V by maxInfluences over combined joints [0, #B + #J)) from the skeleton weights
+// (#V by K over the #B bones) and the rig's muscles: each muscle's weight at a vertex comes from the
+// vertex's distance to the muscle's rest surface (Muscle::surface, lofted from the sections when empty)
+// and the muscle's side (the skin normal must face away from the muscle), times the dominance; it is
+// smoothed over the skin, split linearly between the two muscle joints nearest along the muscle, and the
+// skeleton weights (normalised) fill the remainder. Every row sums to 1 where the skeleton row was
+// non-empty (sum > 1e-4); empty rows stay empty. Throws InputError on mismatched sizes or bad options.
+SkinWeights computeHybridWeights(const Mesh& skin, const Skeleton& skeleton, const SkinWeights& skeletonWeights,
+                                 const MuscleRig& rig, const HybridWeightOptions& options = {});
 
 // ============================================================================
 // Transforms

@@ -1,0 +1,227 @@
+// Muscle weights for hybrid skinning: distance to each muscle's surface and the muscle's side, smoothed over
+// the skin, split between neighbouring muscle joints; the skeleton weights fill the remainder.
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "myoskin/errors.h"
+#include "myoskin/extraction.h"
+#include "myoskin/skinning.h"
+
+namespace myoskin {
+
+namespace {
+
+struct MuscleEntry {
+  int muscle;
+  double weight;  // dominance * distance falloff * side, smoothed
+};
+
+// Vertex neighbours in CSR form (from the triangles' edges; duplicates are harmless for averaging).
+void adjacency(const Mesh& skin, std::vector<int>& start, std::vector<int>& next) {
+  const int nv = skin.numVertices();
+  std::vector<int> count(nv + 1, 0);
+  for (int f = 0; f < skin.numTriangles(); ++f)
+    for (int c = 0; c < 3; ++c) count[skin.triangles(f, c) + 1] += 2;
+  for (int v = 0; v < nv; ++v) count[v + 1] += count[v];
+  start = count;
+  next.assign(count[nv], 0);
+  std::vector<int> fill(count.begin(), count.end() - 1);
+  for (int f = 0; f < skin.numTriangles(); ++f)
+    for (int c = 0; c < 3; ++c) {
+      const int a = skin.triangles(f, c);
+      next[fill[a]++] = skin.triangles(f, (c + 1) % 3);
+      next[fill[a]++] = skin.triangles(f, (c + 2) % 3);
+    }
+}
+
+// 1 up to d0, smoothly (C1) down to 0 at d1.
+double falloff(double d, double d0, double d1) {
+  if (d <= d0) return 1.0;
+  if (d >= d1) return 0.0;
+  const double t = (d - d0) / (d1 - d0);
+  return 1.0 - t * t * (3.0 - 2.0 * t);
+}
+
+// Segment k and parameter t in [0, 1] of the point of the polyline nearest to p.
+void projectOnPolyline(const std::vector<Vec3>& line, const Vec3& p, int& segment, double& t) {
+  segment = 0;
+  t = 0.0;
+  if (line.size() < 2) return;
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t k = 0; k + 1 < line.size(); ++k) {
+    const Vec3 d = line[k + 1] - line[k];
+    const double len2 = d.squaredNorm();
+    const double s = len2 > 0 ? std::clamp((p - line[k]).dot(d) / len2, 0.0, 1.0) : 0.0;
+    const double dist = (line[k] + s * d - p).squaredNorm();
+    if (dist < best) {
+      best = dist;
+      segment = static_cast<int>(k);
+      t = s;
+    }
+  }
+}
+
+void checkOptions(const HybridWeightOptions& o, const MuscleRig& rig) {
+  if (!(o.dominance >= 0.0 && o.dominance <= 1.0))
+    throw InputError("hybrid weights: dominance must be in [0, 1], got " + std::to_string(o.dominance));
+  for (const auto& [name, value] : o.muscleDominance) {
+    bool known = false;
+    for (const Muscle& m : rig.muscles()) known |= m.name == name;
+    if (!known) throw InputError("hybrid weights: muscle dominance for unknown muscle '" + name + "'");
+    if (!(value >= 0.0) || !std::isfinite(value))
+      throw InputError("hybrid weights: muscle dominance of '" + name + "' must be >= 0");
+  }
+  if (o.maxInfluences < 1) throw InputError("hybrid weights: maxInfluences must be >= 1");
+  if (!(o.fullDistance >= 0.0 && o.falloffDistance > o.fullDistance) || !std::isfinite(o.falloffDistance))
+    throw InputError("hybrid weights: need 0 <= fullDistance < falloffDistance");
+  if (o.smoothingIterations < 0) throw InputError("hybrid weights: smoothingIterations must be >= 0");
+}
+
+}  // namespace
+
+SkinWeights computeHybridWeights(const Mesh& skin, const Skeleton& skeleton, const SkinWeights& skeletonWeights,
+                                 const MuscleRig& rig, const HybridWeightOptions& options) {
+  validateMesh(skin, "skin");
+  const int nv = skin.numVertices(), nb = skeleton.numBones();
+  validateSkinWeights(skeletonWeights, nv, nb);
+  checkOptions(options, rig);
+  for (int j = 0; j < rig.numJoints(); ++j)
+    if (rig.jointParentBone()[j] < -1 || rig.jointParentBone()[j] >= nb)
+      throw InputError("hybrid weights: the rig was built for another skeleton (joint '" + rig.jointNames()[j] + "')");
+
+  const Points normals = vertexNormals(skin.vertices, skin.triangles);
+  std::vector<int> start, next;
+  adjacency(skin, start, next);
+  std::vector<std::vector<MuscleEntry>> entries(nv);
+  std::vector<int> local(nv, -1);
+
+  // ==========================================================================
+  // Per muscle: distance + side on the vertices near it, then smoothing over the skin
+  // ==========================================================================
+  for (int m = 0; m < rig.numMuscles(); ++m) {
+    const Muscle& muscle = rig.muscles()[m];
+    double dominance = options.dominance;
+    if (auto it = options.muscleDominance.find(muscle.name); it != options.muscleDominance.end()) dominance *= it->second;
+    if (dominance <= 0.0 || muscle.sections.empty() || rig.jointCount(m) < 1) continue;
+    const Mesh surface = muscle.surface.numVertices() > 0 ? muscle.surface : loftMuscleSurface(muscle);
+    double radius = 0.0;
+    for (const MuscleSection& s : muscle.sections) radius += std::sqrt(std::max(s.a, 0.0) * std::max(s.b, 0.0));
+    radius /= static_cast<double>(muscle.sections.size());
+    const double d0 = options.fullDistance * radius, d1 = options.falloffDistance * radius;
+    Vec3 lo, hi;
+    boundingBox(surface.vertices, lo, hi);
+    lo.array() -= d1;
+    hi.array() += d1;
+    std::vector<int> near;
+    for (int v = 0; v < nv; ++v) {
+      const Vec3 p = skin.vertices.row(v).transpose();
+      if ((p.array() >= lo.array()).all() && (p.array() <= hi.array()).all()) {
+        local[v] = static_cast<int>(near.size());
+        near.push_back(v);
+      }
+    }
+    if (near.empty()) continue;
+    std::vector<double> value(near.size(), 0.0);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, near.size(), 256), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        const Vec3 p = skin.vertices.row(near[i]).transpose();
+        double best = std::numeric_limits<double>::infinity();
+        Eigen::Index q = 0;
+        for (Eigen::Index s = 0; s < surface.vertices.rows(); ++s) {
+          const double d2 = (surface.vertices.row(s).transpose() - p).squaredNorm();
+          if (d2 < best) {
+            best = d2;
+            q = s;
+          }
+        }
+        const double d = std::sqrt(best);
+        const double f = falloff(d, d0, d1);
+        if (f <= 0.0) continue;
+        // Side: the skin must face away from the muscle (its normal along the muscle -> skin direction).
+        const Vec3 away = p - surface.vertices.row(q).transpose();
+        const double cosine = d > 1e-9 ? away.dot(normals.row(near[i]).transpose()) / d : 1.0;
+        const double side = std::clamp(2.0 * cosine, 0.0, 1.0);
+        value[i] = dominance * f * side;
+      }
+    });
+    std::vector<double> smoothed(value.size());
+    for (int it = 0; it < options.smoothingIterations; ++it) {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, near.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          const int v = near[i];
+          double sum = 0.0;
+          const int n = start[v + 1] - start[v];
+          for (int e = start[v]; e < start[v + 1]; ++e) sum += local[next[e]] >= 0 ? value[local[next[e]]] : 0.0;
+          smoothed[i] = n > 0 ? 0.5 * value[i] + 0.5 * sum / n : value[i];
+        }
+      });
+      value.swap(smoothed);
+    }
+    for (size_t i = 0; i < near.size(); ++i) {
+      if (value[i] > 1e-6) entries[near[i]].push_back({m, std::min(value[i], 1.0)});
+      local[near[i]] = -1;
+    }
+  }
+
+  // ==========================================================================
+  // Per vertex: muscle share split between joints, skeleton fills the rest, strongest maxInfluences kept
+  // ==========================================================================
+  std::vector<std::vector<Vec3>> jointLine(rig.numMuscles());
+  for (int m = 0; m < rig.numMuscles(); ++m)
+    for (int k = 0; k < rig.jointCount(m); ++k)
+      jointLine[m].push_back(rig.bindMatrices()[rig.jointOffset(m) + k].block<3, 1>(0, 3));
+  const int K = options.maxInfluences;
+  SkinWeights out;
+  out.joints = IndexMatrix::Constant(nv, K, -1);
+  out.weights = WeightMatrix::Zero(nv, K);
+  tbb::parallel_for(tbb::blocked_range<int>(0, nv, 1024), [&](const tbb::blocked_range<int>& r) {
+    std::vector<std::pair<double, int>> row;
+    for (int v = r.begin(); v != r.end(); ++v) {
+      double skeletonSum = 0.0;
+      for (int k = 0; k < skeletonWeights.influences(); ++k)
+        if (skeletonWeights.joints(v, k) >= 0) skeletonSum += skeletonWeights.weights(v, k);
+      if (skeletonSum <= kRestWeightThreshold) continue;
+      double keep = 1.0, total = 0.0;
+      for (const MuscleEntry& e : entries[v]) {
+        keep *= 1.0 - e.weight;
+        total += e.weight;
+      }
+      const double muscleWeight = 1.0 - keep;
+      row.clear();
+      for (int k = 0; k < skeletonWeights.influences(); ++k) {
+        const int b = skeletonWeights.joints(v, k);
+        const double w = skeletonWeights.weights(v, k);
+        if (b < 0 || w <= 0.0) continue;
+        bool merged = false;
+        for (auto& [rw, rj] : row)
+          if (rj == b) rw += w / skeletonSum * (1.0 - muscleWeight), merged = true;
+        if (!merged) row.push_back({w / skeletonSum * (1.0 - muscleWeight), b});
+      }
+      const Vec3 p = skin.vertices.row(v).transpose();
+      for (const MuscleEntry& e : entries[v]) {
+        const double share = muscleWeight * e.weight / total;
+        const int first = nb + rig.jointOffset(e.muscle);
+        int segment;
+        double t;
+        projectOnPolyline(jointLine[e.muscle], p, segment, t);
+        row.push_back({share * (1.0 - t), first + segment});
+        if (t > 0.0) row.push_back({share * t, first + segment + 1});
+      }
+      std::sort(row.begin(), row.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+      const int used = std::min<int>(K, static_cast<int>(row.size()));
+      double kept = 0.0;
+      for (int k = 0; k < used; ++k) kept += row[k].first;
+      for (int k = 0; k < used; ++k) {
+        out.joints(v, k) = row[k].second;
+        out.weights(v, k) = row[k].first / kept;
+      }
+    }
+  });
+  return out;
+}
+
+}  // namespace myoskin
