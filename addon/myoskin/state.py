@@ -20,9 +20,11 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
             surface                       the muscle's mesh object
         .active_index                     the UI list's selection
         .bound, .dirty                    muscle joints are bound to the rig / edited since the bind
-        .weights_text                     Text datablock with the skin's original vertex groups (Unbind
+        .joint_names_text                 Text datablock "<armature>.bind.json", the bind record: skeleton
+                                          (names, parents, heads, tails, rest), the bound muscles' json,
+                                          joint names, surface object names (live update rebuilds from it)
+    skin_obj["myoskin_original_weights"]  ID property: the skin's vertex groups before Bind (Unbind
                                           restores them exactly)
-        .joint_names_text                 Text datablock: the bound muscle-joint bone names (JSON list)
 
 Converting this to and from core Muscle lists is muscle_io's job; no core call here (only property
 definitions and their update callbacks, which queue work for muscle_io).
@@ -101,7 +103,6 @@ class MyoskinRigState(bpy.types.PropertyGroup):
     dirty: BoolProperty(name="Edited Since Bind", description="Muscles changed after the bind: bind again")
     live: BoolProperty(name="Live Update", default=True,
                        description="Move muscle joints (and the muscle surfaces) whenever the skeleton moves")
-    weights_text: PointerProperty(name="Original Weights", type=bpy.types.Text)
     joint_names_text: PointerProperty(name="Muscle Joint Bones", type=bpy.types.Text)
 
 

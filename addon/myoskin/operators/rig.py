@@ -20,32 +20,42 @@ from ..state import rig_state
 # ------------------------------------------------------------------------------------------------
 
 
+BACKUP_KEY = "myoskin_original_weights"
+
+
 def backup_weights(skin):
-    """JSON text of every vertex group of the skin: [[name, [vertex...], [weight...]], ...] in group order.
-    float32 weights are written as the exact decimal of their float64 value, so a restore is exact."""
-    names = [g.name for g in skin.vertex_groups]
-    members = [([], []) for _ in names]
+    """Store every vertex group of the skin as an ID property on it: {name: {"index": group index,
+    "vertices": [...], "weights": [...]}}. Weights are float32 in Blender and kept as float64 here, so a
+    restore is exact."""
+    members = [([], []) for _ in skin.vertex_groups]
     for v in skin.data.vertices:
         for g in v.groups:
             members[g.group][0].append(v.index)
             members[g.group][1].append(g.weight)
-    return json.dumps([[n, ids, ws] for n, (ids, ws) in zip(names, members)])
+    skin[BACKUP_KEY] = {g.name: {"index": g.index, "vertices": ids, "weights": ws}
+                        for g, (ids, ws) in zip(skin.vertex_groups, members)}
 
 
-def restore_weights(skin, text):
+def restore_weights(skin):
     """Give every backed-up group exactly its backed-up members (groups keep their index; missing ones are
-    recreated; groups added since the backup that name no bone are left alone)."""
-    backup = json.loads(text)
+    recreated; groups added since the backup are left alone), then drop the backup."""
+    backup = skin.get(BACKUP_KEY)
+    if backup is None:
+        return False
     everyone = list(range(len(skin.data.vertices)))
-    for name, ids, ws in backup:
+    for name, entry in sorted(backup.items(), key=lambda kv: kv[1]["index"]):
         group = skin.vertex_groups.get(name) or skin.vertex_groups.new(name=name)
         group.remove(everyone)
+        ids = np.asarray(entry["vertices"], dtype=np.int64)
+        ws = np.asarray(entry["weights"], dtype=np.float64)
         order = np.argsort(ws, kind="stable")
-        ids, ws = np.asarray(ids, dtype=np.int64)[order], np.asarray(ws, dtype=np.float64)[order]
+        ids, ws = ids[order], ws[order]
         breaks = np.flatnonzero(np.diff(ws) != 0) + 1
         for a, b in zip(np.concatenate(([0], breaks)), np.concatenate((breaks, [len(ws)]))):
             if b > a:
                 group.add(ids[a:b].tolist(), float(ws[a]), 'REPLACE')
+    del skin[BACKUP_KEY]
+    return True
 
 
 def hybrid_weights(core, character, rig):
@@ -81,7 +91,7 @@ def bind(context, skin, arm):
         raise ValueError(f"Every muscle of '{arm.name}' is disabled: enable at least one to bind")
     rig = core.MuscleRig(character, muscles)
     joints, weights = hybrid_weights(core, character, rig)
-    backup = backup_weights(skin)
+    backup_weights(skin)
     names = list(character.bone_names)
     rig_io.create_rig_bones(arm, rig, names)
     rig_io.write_combined_weights(skin, names + list(rig.joint_names), joints, weights)
@@ -101,8 +111,7 @@ def bind(context, skin, arm):
         "joint_names": list(rig.joint_names), "muscles": core.muscles_to_json(muscles),
         "surfaces": [surfaces.get(m.name, "") for m in muscles],
     }
-    state.weights_text = _text(f"{arm.name}.original_weights.json", backup)
-    state.joint_names_text = _text(f"{arm.name}.bind.json", json.dumps(record))
+    state.joint_names_text = _text(f"{arm.name}.bind.json", json.dumps(record, indent=1))
     state.skin = skin
     state.bound, state.dirty = True, False
     context.scene.render.use_lock_interface = True  # handlers run on the render thread during F12
@@ -116,15 +125,13 @@ def unbind(skin, arm):
     state = rig_state(arm)
     record = json.loads(state.joint_names_text.as_string()) if state.joint_names_text else {}
     rig_io.remove_muscle_bones(arm)
-    if state.weights_text is not None:
-        restore_weights(skin, state.weights_text.as_string())
+    restore_weights(skin)
     if record.get("added_modifier"):
         mod = armature_modifier(skin, arm)
         if mod is not None:
             skin.modifiers.remove(mod)
-    for text in (state.weights_text, state.joint_names_text):
-        if text is not None:
-            bpy.data.texts.remove(text)
+    if state.joint_names_text is not None:
+        bpy.data.texts.remove(state.joint_names_text)
     state.bound, state.dirty = False, False
     live.forget(arm.name)
 
