@@ -2,12 +2,17 @@
 """Live update of bound muscles: when the skeleton moves, the muscle-joint bones (and the muscle surfaces)
 follow, exactly as the core computes them.
 
-Route (measured, README "Live update"): `frame_change_post` + `depsgraph_update_post` handlers. They read
-the skeleton's pose from the EVALUATED armature of the depsgraph they are given (so IK, constraints and
-drivers are already applied: no one-frame lag), evaluate the core's MuscleRig, write the joints' pose with
-one foreach_set and tag the armature; Blender's second evaluation pass in the same frame_set / update then
-re-skins with the new joints. Cost: the skin is evaluated twice per frame. The handlers write ORIGINAL data,
-so every depsgraph (viewport, F12 / Cycles render with render.use_lock_interface on) sees the same joints.
+Route (measured by benchmarks/bench_blender_playback.py, README "Live update"):
+1. `frame_change_pre` predicts the skeleton's pose at the new frame from the Action's F-curves (plain FK in
+   numpy) when nothing else drives the skeleton (no bone constraints, drivers or NLA), and writes the
+   joints before Blender evaluates: one evaluation per frame, the cost of the plain Armature modifier.
+2. `frame_change_post` + `depsgraph_update_post` read the skeleton's pose from the EVALUATED armature of
+   the depsgraph they are given (IK, constraints and drivers applied). When it equals the prediction (to
+   1e-6) nothing more happens; otherwise (IK, constraints, hand posing) they evaluate the core's MuscleRig,
+   write the joints with one foreach_set and tag the armature, and Blender's second evaluation pass in the
+   same frame_set / update re-skins with the new joints: exact, no one-frame lag, two evaluations.
+The handlers write ORIGINAL data, so every depsgraph (viewport, F12 / Cycles render with
+render.use_lock_interface on) sees the same joints.
 
 State: nothing is held between calls but a cache keyed by armature name and the bind record's text (rebuilt
 after reload or undo); objects are looked up in bpy.data on every call. Without the add-on the file opens
@@ -23,6 +28,7 @@ from . import core_loader
 
 _cache = {}     # armature name -> LiveRig
 _busy = False
+stats = {"predicted": 0, "written": 0}  # frames written from the F-curve prediction / from the evaluated pose
 
 
 class LiveRig:
@@ -41,6 +47,11 @@ class LiveRig:
             raise ValueError(f"'{arm_obj.name}': the bind record's joints do not match its muscles: bind again")
         self.surface_names = record.get("surfaces", [])
         self.last_pose = None
+        # FK offsets: pose_i = pose_parent @ (rest_parent^-1 @ rest_i) @ basis_i (rest_i for a root bone)
+        rest = np.asarray(record["bone_rest"], dtype=np.float64)
+        self.parent_index = [int(p) for p in record["bone_parents"]]
+        self.rest_local = np.array([np.linalg.inv(rest[p]) @ rest[i] if p >= 0 else rest[i]
+                                    for i, p in enumerate(self.parent_index)])
 
     def skeleton_indices(self, pose_bones):
         idx = [pose_bones.find(n) for n in self.bone_names]
@@ -101,7 +112,7 @@ def update_armature(arm_obj, depsgraph=None, force=False, surfaces=None):
     from . import rig_io
     live = live_rig(arm_obj)
     pose = evaluated_pose(arm_obj, live, depsgraph)
-    if not force and live.last_pose is not None and np.array_equal(pose, live.last_pose):
+    if not force and live.last_pose is not None and np.abs(pose - live.last_pose).max() <= PREDICT_TOLERANCE:
         return False
     with_surfaces = muscles_visible(arm_obj) if surfaces is None else surfaces
     result = live.rig.evaluate(pose, with_surfaces=with_surfaces)
@@ -110,6 +121,7 @@ def update_armature(arm_obj, depsgraph=None, force=False, surfaces=None):
     if with_surfaces:
         write_surfaces(arm_obj, live, result["surfaces"])
     live.last_pose = pose
+    stats["written"] += 1
     return True
 
 
@@ -124,6 +136,108 @@ def write_surfaces(arm_obj, live, surfaces):
 
 def bound_armatures(scene):
     return [o for o in scene.objects if o.type == 'ARMATURE' and o.myoskin.bound and o.myoskin.live]
+
+
+# ------------------------------------------------------------------------------------------------
+# Prediction of the skeleton's pose from F-curves (frame_change_pre)
+# ------------------------------------------------------------------------------------------------
+
+PREDICT_TOLERANCE = 1e-6  # predicted vs evaluated pose matrices: below this no second evaluation
+
+
+def _predictable(arm_obj, live):
+    """True when the skeleton's pose is its F-curves' plain FK: no constraints on any bone, no drivers, no
+    NLA strips, every bone inheriting rotation and scale fully with local location."""
+    anim = arm_obj.animation_data
+    if anim is not None and (len(anim.drivers) or any(len(t.strips) for t in anim.nla_tracks)):
+        return False
+    for pb in arm_obj.pose.bones:
+        if len(pb.constraints):
+            return False
+    for bone in arm_obj.data.bones:
+        if not bone.use_inherit_rotation or bone.inherit_scale != 'FULL' or not bone.use_local_location:
+            return False
+    return True
+
+
+def _channel(fcurves, pb, path, size, frame):
+    """The F-curve values of one pose-bone channel at `frame` (the current value where a curve is missing)."""
+    current = list(getattr(pb, path))
+    if fcurves is None:
+        return current
+    data_path = f'pose.bones["{pb.name}"].{path}'
+    for k in range(size):
+        fc = fcurves.find(data_path, index=k)
+        if fc is not None and not fc.mute:
+            current[k] = fc.evaluate(frame)
+    return current
+
+
+def predicted_pose(arm_obj, live, frame):
+    """#B by 4 by 4 skeleton pose at `frame` by FK from the Action's F-curves, or None when something else
+    (constraints, IK, drivers, NLA) may drive the skeleton."""
+    from mathutils import Euler, Matrix, Quaternion, Vector
+    if not _predictable(arm_obj, live):
+        return None
+    anim = arm_obj.animation_data
+    fcurves = anim.action.fcurves if anim is not None and anim.action is not None else None
+    pose_bones = arm_obj.pose.bones
+    rest = live.rest_local
+    out = np.empty((len(live.bone_names), 4, 4))
+    for i, name in enumerate(live.bone_names):
+        pb = pose_bones[name]
+        loc = Vector(_channel(fcurves, pb, "location", 3, frame))
+        scale = _channel(fcurves, pb, "scale", 3, frame)
+        mode = pb.rotation_mode
+        if mode == 'QUATERNION':
+            rot = Quaternion(_channel(fcurves, pb, "rotation_quaternion", 4, frame)).normalized().to_matrix()
+        elif mode == 'AXIS_ANGLE':
+            a = _channel(fcurves, pb, "rotation_axis_angle", 4, frame)
+            rot = Matrix.Rotation(a[0], 3, Vector(a[1:])) if Vector(a[1:]).length > 0 else Matrix.Identity(3)
+        else:
+            rot = Euler(_channel(fcurves, pb, "rotation_euler", 3, frame), mode).to_matrix()
+        basis = np.array(Matrix.LocRotScale(loc, rot, Vector(scale)))
+        p = live.parent_index[i]
+        out[i] = (out[p] @ rest[i] if p >= 0 else rest[i]) @ basis
+    return out
+
+
+def predict_armature(arm_obj, frame):
+    """frame_change_pre: write the joints for the predicted pose (True when it could predict)."""
+    from . import rig_io
+    live = live_rig(arm_obj)
+    pose = predicted_pose(arm_obj, live, frame)
+    if pose is None:
+        return False
+    with_surfaces = muscles_visible(arm_obj)
+    result = live.rig.evaluate(pose, with_surfaces=with_surfaces)
+    parents = {n: pose[i] for i, n in enumerate(live.bone_names)}
+    rig_io.write_joint_matrices(arm_obj, live.joint_names, result["joint_matrices"], parent_matrices=parents)
+    if with_surfaces:
+        write_surfaces(arm_obj, live, result["surfaces"])
+    live.last_pose = pose
+    stats["predicted"] += 1
+    return True
+
+
+@persistent
+def on_frame_change_pre(scene, depsgraph=None):
+    global _busy
+    if _busy or not core_loader.available():
+        return
+    armatures = bound_armatures(scene)
+    if not armatures:
+        return
+    _busy = True
+    try:
+        for arm in armatures:
+            try:
+                predict_armature(arm, scene.frame_current_final)
+            except (ValueError, RuntimeError) as e:
+                print(f"Myoskin: live update of '{arm.name}' stopped: {e}")
+                arm.myoskin["live"] = False
+    finally:
+        _busy = False
 
 
 @persistent
@@ -147,6 +261,21 @@ def on_update(scene, depsgraph=None):
         _busy = False
 
 
+def set_baked_muted(arm_obj, muted):
+    """Mute (live on) or unmute (live off: the baked Action plays) the muscle joints' F-curves."""
+    anim = arm_obj.animation_data
+    if anim is None or anim.action is None:
+        return 0
+    from . import rig_io
+    prefixes = tuple(f'pose.bones["{n}"].' for n in rig_io.muscle_bone_names(arm_obj))
+    count = 0
+    for fc in anim.action.fcurves:
+        if fc.data_path.startswith(prefixes):
+            fc.mute = muted
+            count += 1
+    return count
+
+
 def forget(arm_name=None):
     """Drop cached rigs (all, or one armature's)."""
     if arm_name is None:
@@ -155,14 +284,20 @@ def forget(arm_name=None):
         _cache.pop(arm_name, None)
 
 
+def _handlers():
+    h = bpy.app.handlers
+    return ((h.frame_change_pre, on_frame_change_pre), (h.frame_change_post, on_update),
+            (h.depsgraph_update_post, on_update))
+
+
 def register():
-    for handlers in (bpy.app.handlers.frame_change_post, bpy.app.handlers.depsgraph_update_post):
-        if on_update not in handlers:
-            handlers.append(on_update)
+    for handlers, fn in _handlers():
+        if fn not in handlers:
+            handlers.append(fn)
 
 
 def unregister():
-    for handlers in (bpy.app.handlers.frame_change_post, bpy.app.handlers.depsgraph_update_post):
-        if on_update in handlers:
-            handlers.remove(on_update)
+    for handlers, fn in _handlers():
+        if fn in handlers:
+            handlers.remove(fn)
     forget()

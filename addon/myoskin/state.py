@@ -62,6 +62,14 @@ def _name_changed(self, context):
         print(f"Myoskin: could not rename '{self.name}': {e}")
 
 
+def _live_changed(self, context):
+    from . import live
+    arm_obj = self.id_data
+    live.set_baked_muted(arm_obj, self.live)
+    if self.live and self.bound:
+        live.forget(arm_obj.name)
+
+
 class MyoskinMuscle(bpy.types.PropertyGroup):
     name: StringProperty(name="Name", description="Muscle name (its joints become <name>.j<k>)",
                          update=_name_changed)
@@ -101,8 +109,9 @@ class MyoskinRigState(bpy.types.PropertyGroup):
     active_index: IntProperty(name="Active Muscle", default=0, min=0)
     bound: BoolProperty(name="Bound", description="Muscle joints are deform bones of this armature")
     dirty: BoolProperty(name="Edited Since Bind", description="Muscles changed after the bind: bind again")
-    live: BoolProperty(name="Live Update", default=True,
-                       description="Move muscle joints (and the muscle surfaces) whenever the skeleton moves")
+    live: BoolProperty(name="Live Update", default=True, update=_live_changed,
+                       description="Move muscle joints (and the muscle surfaces) whenever the skeleton moves; "
+                                   "off: the baked Action plays (also without the add-on)")
     joint_names_text: PointerProperty(name="Muscle Joint Bones", type=bpy.types.Text)
 
 

@@ -275,17 +275,70 @@ def test_bake_action_plays_without_the_handlers():
     for frame, deg in ((1, 0.0), (5, 100.0)):
         pb.rotation_euler = (np.radians(deg), 0.0, 0.0)
         pb.keyframe_insert("rotation_euler", frame=frame)
+    scene.frame_set(4)
+    live_result = module("blender_io").evaluated_vertices(skin)
     assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=5) == {'FINISHED'}
     fcurves = arm.animation_data.action.fcurves
     for n in joint_names(state):
-        assert fcurves.find(f'pose.bones["{n}"].scale', index=1) is not None
+        fc = fcurves.find(f'pose.bones["{n}"].scale', index=1)
+        assert fc is not None and len(fc.keyframe_points) == 5 and not fc.mute
+    assert not state.live  # the baked Action plays
+    calls = dict(module("live").stats)
+    scene.frame_set(1)
     scene.frame_set(4)
-    live_result = module("blender_io").evaluated_vertices(skin)
+    assert module("live").stats == calls  # no handler work
+    baked = module("blender_io").evaluated_vertices(skin)
+    assert np.abs(baked - live_result).max() < 1e-5
+    # edit the animation: live update follows it (baked keys muted), the stale bake does not
+    pb.rotation_euler = (np.radians(40.0), 0.0, 0.0)
+    pb.keyframe_insert("rotation_euler", frame=5)
+    state.live = True
+    assert fcurves.find(f'pose.bones["{joint_names(state)[0]}"].scale', index=1).mute
+    scene.frame_set(4)
+    assert np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max() < 1e-5
     state.live = False
     scene.frame_set(1)
     scene.frame_set(4)
-    baked = module("blender_io").evaluated_vertices(skin)
-    assert np.abs(baked - live_result).max() < 1e-5
+    assert np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max() > 1e-4
+    # baking again replaces the keys and the result is exact again
+    assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=5) == {'FINISHED'}
+    scene.frame_set(4)
+    assert np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max() < 1e-5
+
+
+def test_fk_playback_needs_one_evaluation_ik_is_corrected():
+    """F-curve-only skeletons are predicted in frame_change_pre (no second evaluation); an animated IK
+    target is corrected from the evaluated pose (exact, no lag)."""
+    arm, skin, state, _ = bound_arm()
+    scene = bpy.context.scene
+    pb = arm.pose.bones["forearm"]
+    pb.rotation_mode = 'QUATERNION'
+    for frame, deg in ((1, 0.0), (10, 120.0)):
+        pb.rotation_quaternion = (np.cos(np.radians(deg) / 2), np.sin(np.radians(deg) / 2), 0.0, 0.0)
+        pb.keyframe_insert("rotation_quaternion", frame=frame)
+    stats = module("live").stats
+    scene.frame_set(1)
+    before = dict(stats)
+    for frame in range(2, 10):
+        scene.frame_set(frame)
+        assert np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max() < 1e-5
+    assert stats["predicted"] - before["predicted"] == 8 and stats["written"] == before["written"], stats
+    # an IK chain whose target is animated
+    target = bpy.data.objects.new("ik_target", None)
+    scene.collection.objects.link(target)
+    head = np.array(arm.data.bones["forearm"].head_local)
+    for frame, offset in ((1, (0.0, 0.25, 0.05)), (10, (0.0, 0.1, 0.2))):
+        target.location = head + np.array(offset)
+        target.keyframe_insert("location", frame=frame)
+    ik = arm.pose.bones["forearm"].constraints.new('IK')
+    ik.target, ik.chain_count = target, 2
+    scene.frame_set(1)
+    before = dict(stats)
+    for frame in (3, 6, 9, 4):
+        scene.frame_set(frame)
+        err = np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max()
+        assert err < 1e-5, f"frame {frame} with IK: {err:.3g} m"
+    assert stats["written"] - before["written"] == 4 and stats["predicted"] == before["predicted"], stats
 
 
 def test_export_gltf_with_helper_bones():

@@ -198,13 +198,14 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
             arm.animation_data_create()
         if arm.animation_data.action is None:
             arm.animation_data.action = bpy.data.actions.new(f"{arm.name}Action")
+        state.live = True  # mutes the joints' earlier baked keys, so they cannot override the live values
         wm = context.window_manager
         wm.progress_begin(self.frame_start, self.frame_end)
         current = scene.frame_current
         try:
             for frame in range(self.frame_start, self.frame_end + 1):
                 scene.frame_set(frame)
-                live.update_armature(arm, force=True)
+                live.update_armature(arm, context.evaluated_depsgraph_get(), force=True)
                 for n in names:
                     pb = arm.pose.bones[n]
                     pb.rotation_mode = 'QUATERNION'
@@ -213,8 +214,10 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
                 wm.progress_update(frame)
         finally:
             wm.progress_end()
-            scene.frame_set(current)
-        return f"Baked {len(names)} muscle joints over frames {self.frame_start}-{self.frame_end}"
+        state.live = False  # the baked Action plays now (also without the add-on); Live Update mutes it again
+        scene.frame_set(current)
+        return (f"Baked {len(names)} muscle joints over frames {self.frame_start}-{self.frame_end} "
+                f"(live update off: the Action plays; turn it on after editing the animation)")
 
 
 def numpy_bool_for_gltf():

@@ -1,0 +1,104 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Playback benchmark (Blender background): frames per second of scene.frame_set over 100 frames of an
+animated elbow + shoulder on the synthetic arm at ~50k vertices, in one run:
+
+    skeleton only      the plain Armature modifier, the character's own weights (baseline)
+    bound, live        muscles bound, live update handlers on (muscle surfaces hidden)
+    bound, live+surf   the same with the muscle surfaces shown (written every frame)
+    bound, baked       muscle joints baked to the Action, live update off (what a farm / no add-on plays)
+
+Prints fps and the ratio to the baseline; never asserts. Run through `./myoskin.sh bench`, or
+    BLENDER_USER_SCRIPTS=build/blender_scripts blender -b --factory-startup --python-exit-code 1 \\
+        --addons myoskin --python benchmarks/bench_blender_playback.py [-- --frames 100 --rings 600]
+"""
+import argparse
+import sys
+import time
+
+import bpy
+import numpy as np
+
+
+def parse_args():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    p = argparse.ArgumentParser(prog="bench_blender_playback.py")
+    p.add_argument("--frames", type=int, default=100)
+    p.add_argument("--rings", type=int, default=600, help="rings per metre (600 -> ~50k vertices)")
+    p.add_argument("--repeats", type=int, default=3, help="best of N passes per case")
+    return p.parse_args(argv)
+
+
+def animate(arm, frames):
+    for name, axis, amplitude in (("forearm", 0, 2.0), ("upper_arm", 2, 0.6)):
+        pb = arm.pose.bones[name]
+        pb.rotation_mode = 'XYZ'
+        for f in (1, frames // 2, frames):
+            rot = [0.0, 0.0, 0.0]
+            rot[axis] = amplitude * np.sin(np.pi * (f - 1) / max(frames - 1, 1))
+            pb.rotation_euler = rot
+            pb.keyframe_insert("rotation_euler", frame=f)
+
+
+def seconds(scene, frames):
+    scene.frame_set(frames)
+    start = time.perf_counter()
+    for f in range(1, frames + 1):
+        scene.frame_set(f)
+    return time.perf_counter() - start
+
+
+def add_character(core, blender_io, scene, name, rings, frames):
+    """The synthetic arm, animated, built in the context scene and then moved to `scene`."""
+    character, _ = core.make_synthetic_arm(seed=1, rings_per_metre=rings)
+    here = bpy.context.scene.collection
+    arm, skin = blender_io.character_to_blender(character, name, here)
+    animate(arm, frames)
+    if scene != bpy.context.scene:
+        for obj in (arm, skin):
+            scene.collection.objects.link(obj)
+            here.objects.unlink(obj)
+    return arm, skin
+
+
+def main():
+    args = parse_args()
+    from myoskin import blender_io, core_loader
+    core = core_loader.core()
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bound_scene = bpy.context.scene
+    plain_scene = bpy.data.scenes.new("SkeletonOnly")
+    for scene in (bound_scene, plain_scene):
+        scene.frame_start, scene.frame_end = 1, args.frames
+    add_character(core, blender_io, plain_scene, "PlainArm", args.rings, args.frames)
+    arm, skin = add_character(core, blender_io, bound_scene, "BoundArm", args.rings, args.frames)
+    bpy.context.view_layer.objects.active = skin
+    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
+    t0 = time.perf_counter()
+    assert bpy.ops.myoskin.bind() == {'FINISHED'}
+    bind_seconds = time.perf_counter() - t0
+    state = arm.myoskin
+    assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=args.frames) == {'FINISHED'}
+    joints = len(__import__("json").loads(state.joint_names_text.as_string())["joint_names"])
+    print(f"bench_blender_playback: {len(skin.data.vertices):,} vertices, {len(arm.data.bones) - joints} "
+          f"bones + {joints} muscle joints ({len(state.muscles)} muscles), {args.frames} frames; bind "
+          f"{bind_seconds:.2f} s; cases interleaved, best of {args.repeats}", flush=True)
+
+    def configure(live, surfaces):
+        state.live = live
+        state.collection.hide_viewport = not surfaces
+
+    cases = [("skeleton only", plain_scene, None), ("bound, live", bound_scene, (True, False)),
+             ("bound, live+surfaces", bound_scene, (True, True)), ("bound, baked", bound_scene, (False, False))]
+    best = {name: float("inf") for name, _s, _c in cases}
+    for _ in range(args.repeats):
+        for name, scene, config in cases:
+            if config is not None:
+                configure(*config)
+            best[name] = min(best[name], seconds(scene, args.frames))
+    base = args.frames / best["skeleton only"]
+    for name, _s, _c in cases:
+        value = args.frames / best[name]
+        print(f"  {name:<22} {value:7.1f} fps  {1000 / value:6.2f} ms/frame   ratio {value / base:5.2f}")
+
+
+main()
