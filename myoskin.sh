@@ -69,6 +69,9 @@ run_render_muscles() {
 
 run_bench() {
   for b in "$BUILD"/bin/bench_*; do log "$(basename "$b")"; "$b"; done
+  log "bench_blender_playback (Blender background)"
+  BLENDER_USER_SCRIPTS="$BUILD/blender_scripts" blender -b --factory-startup --python-exit-code 1 \
+    --addons myoskin --python "$ROOT/benchmarks/bench_blender_playback.py"
 }
 
 case "${1:-}" in
