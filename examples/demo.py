@@ -5,8 +5,9 @@
         --addons myoskin --python examples/demo.py -- --output DIR
 
 Writes to DIR:
-    myoskin_demo.blend   the rig, the skin (vertex groups + linear Armature modifier) and the muscles;
-                         frame 1 = rest, frame 2 = elbow bent ~90 degrees
+    myoskin_demo.blend   the rig with its muscle joints bound (Extract + Bind through the add-on), the skin
+                         (hybrid vertex groups + linear Armature modifier) and the muscles; frame 1 = rest,
+                         frame 2 = elbow bent ~90 degrees; muscle joints baked to the Action
     muscles.json         the muscles extracted from the skin (format myoskin.muscles, version 1)
     truth.json           the generator's ground-truth muscles (centre lines and radii)
     render_rest.png      Cycles render, muscles (red) under a translucent skin, rest pose
@@ -46,8 +47,8 @@ from scene_setup import (add_sun, empty_scene, frame_camera, muscle_material, re
 def addon():
     """The add-on's modules, or a clear exit when Blender was started without it."""
     core_loader = require_addon("demo.py")
-    from myoskin import blender_io, preferences, truth
-    return blender_io, core_loader, preferences, truth
+    from myoskin import blender_io, muscle_io, preferences, truth
+    return blender_io, core_loader, preferences, truth, muscle_io
 
 
 def log(message, start=[time.perf_counter()]):  # noqa: B006 (process start time)
@@ -72,7 +73,7 @@ def render(scene, frame, path):
 
 def main():
     args = parse_args()
-    blender_io, core_loader, preferences, truth_mod = addon()
+    blender_io, core_loader, preferences, truth_mod, muscle_io = addon()
     core = core_loader.core()
     out = os.path.abspath(args.output)
     os.makedirs(out, exist_ok=True)
@@ -92,16 +93,27 @@ def main():
     for tube in tubes:
         tube.hide_render = True
 
-    # The muscles extracted from the skin (Yang & Zhang's pipeline in the core).
-    muscles, report = core.extract_muscles(character, spacing=prefs.section_spacing,
-                                            min_sections=prefs.min_sections)
-    for m in muscles:
-        m.joints, m.bulge = prefs.joints_per_muscle, prefs.bulge_factor
+    # The muscles extracted from the skin (Yang & Zhang's pipeline in the core), through the add-on's
+    # operators as an artist would run them: Extract, then Bind (muscle joints + weights on the rig).
+    for obj in bpy.context.selected_objects:
+        obj.select_set(False)
+    bpy.context.view_layer.objects.active = mesh_obj
+    assert bpy.ops.myoskin.extract_muscles(spacing=prefs.section_spacing,
+                                           min_sections=prefs.min_sections) == {'FINISHED'}
+    state = arm_obj.myoskin
+    muscles = muscle_io.state_to_core(arm_obj)
+    material = muscle_material()
+    shapes = [item.surface for item in state.muscles]
+    for shape in shapes:
+        shape.data.materials.append(material)
+    for item in state.muscles:
+        for locator in (item.origin_locator, item.insertion_locator):
+            locator.hide_render = True
     accuracy = core.measure_extraction(muscles, truth)
-    log(f"extracted {len(muscles)} muscles in {sum(report['timings'].values()):.3f} s: recall "
-        f"{accuracy['recall']:.2f}, precision {accuracy['precision']:.2f} against the {len(truth)} true ones")
-    shapes = blender_io.muscles_to_meshes(muscles, material=muscle_material(), armature_obj=arm_obj)
-    log(f"built {arm_obj.name} ({len(arm_obj.data.bones)} bones), {mesh_obj.name} "
+    log(f"extracted {len(muscles)} muscles: recall {accuracy['recall']:.2f}, precision "
+        f"{accuracy['precision']:.2f} against the {len(truth)} true ones")
+    assert bpy.ops.myoskin.bind() == {'FINISHED'}
+    log(f"built {arm_obj.name} ({len(arm_obj.data.bones)} bones incl. muscle joints), {mesh_obj.name} "
         f"({len(mesh_obj.data.vertices)} vertices), {len(shapes)} muscle meshes, {len(tubes)} truth tubes")
     core.write_muscles(os.path.join(out, "muscles.json"), muscles)
     with open(os.path.join(out, "truth.json"), "w", encoding="utf-8") as f:
@@ -116,7 +128,9 @@ def main():
         world = np.array(mesh_obj.matrix_world)
         points.append(blender_io.evaluated_vertices(mesh_obj) @ world[:3, :3].T + world[:3, 3])
     posed_err = np.abs(points[1] - points[0]).max()
-    log(f"posed the elbow {args.elbow:.0f} degrees (skin moved up to {posed_err:.3f} m)")
+    log(f"posed the elbow {args.elbow:.0f} degrees (skin moved up to {posed_err:.3f} m, muscles follow live)")
+    assert bpy.ops.myoskin.bake_action(frame_start=FRAME_REST, frame_end=FRAME_POSED) == {'FINISHED'}
+    log("baked the muscle joints to the Action (the .blend plays without the add-on)")
 
     setup_render(scene, args.samples, tuple(args.resolution))
     frame_camera(np.vstack(points), args.resolution)
