@@ -27,8 +27,9 @@ def parse_args(argv):
                    help="extract: (re-)extract the muscles; none: use the muscles already in the file")
     p.add_argument("--input", "-i", help="a .blend, .glb or .gltf to open first (default: the open file)")
     p.add_argument("--object", help="the skinned mesh (default: the only mesh with an armature)")
-    p.add_argument("--spacing", type=float, default=0.0, help="section spacing in metres (0 = automatic)")
-    p.add_argument("--min-confidence", type=float, default=0.6)
+    p.add_argument("--spacing", type=float, default=-1.0,
+                   help="section spacing in metres (0 = automatic, default: the add-on's preferences)")
+    p.add_argument("--min-confidence", type=float, default=-1.0, help="default: the add-on's preferences")
     p.add_argument("--bind", action="store_true", help="bind the muscles to the armature")
     p.add_argument("--bake", metavar="A-B", help="bake the muscle joints to keyframes over frames A-B")
     p.add_argument("--pc2", metavar="FILE", help="bake the skin to a PC2 cache (needs --bind and --bake)")

@@ -22,9 +22,9 @@ def watch_locators(scene, depsgraph=None):
     global _busy
     if _busy:
         return
-    if depsgraph is not None and not any(isinstance(u.id, bpy.types.Object) and u.is_updated_transform
-                                         for u in depsgraph.updates):
-        return
+    if depsgraph is not None and not any(u.is_updated_transform and isinstance(u.id, bpy.types.Object)
+                                         and u.id.get("myoskin_end") is not None for u in depsgraph.updates):
+        return  # no locator moved (e.g. playback, posing): nothing to do
     from . import core_loader, muscle_io
     if not core_loader.available():
         return

@@ -97,6 +97,8 @@ def store_core(item, muscle):
     item["wrap_side"] = 0 if muscle.wrap_side >= 0 else 1
     item["origin_bone"] = muscle.origin_bone
     item["insertion_bone"] = muscle.insertion_bone
+    item["origin_rest"] = [float(x) for x in muscle.origin]  # float64 here; compared against the locators
+    item["insertion_rest"] = [float(x) for x in muscle.insertion]
 
 
 def sync_text(arm_obj):
@@ -391,18 +393,17 @@ def on_renamed(arm_obj, item):
     sync_text(arm_obj)
 
 
-def moved_locator_muscles(arm_obj, tolerance=1e-9):
-    """Items whose origin/insertion locator's rest position differs from the stored one."""
+def moved_locator_muscles(arm_obj, tolerance=1e-6):
+    """Items whose origin/insertion locator's rest position differs from the stored one (tolerance in
+    metres: locations are float32)."""
     moved = []
     for item in rig_state(arm_obj).muscles:
-        if not item.data:
-            continue
-        stored = json.loads(item.data)["muscles"][0]
         for end in LOCATOR_ENDS:
             locator = getattr(item, end + "_locator")
-            if locator is None:
+            stored = item.get(end + "_rest")
+            if locator is None or stored is None:
                 continue
-            if np.abs(locator_rest_position(locator) - np.asarray(stored[end]["position"])).max() > tolerance:
+            if np.abs(locator_rest_position(locator) - np.asarray(stored)).max() > tolerance:
                 moved.append(item)
                 break
     return moved

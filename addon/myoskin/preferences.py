@@ -14,6 +14,9 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
         name="Section Spacing", description="Distance between cutting planes during extraction "
                                             "(0 = automatic: 1/80 of the character's largest extent)",
         default=0.0, min=0.0, soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
+    min_confidence: FloatProperty(
+        name="Minimum Confidence", description="Extraction drops muscles less significant than this",
+        default=0.6, min=0.0, max=1.0)
     min_sections: IntProperty(
         name="Minimum Sections", description="Sections a muscle needs to be kept by extraction",
         default=5, min=1, soft_max=20)
@@ -32,6 +35,7 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
         col = layout.column(align=True)
         col.label(text="Extraction")
         col.prop(self, "section_spacing")
+        col.prop(self, "min_confidence")
         col.prop(self, "min_sections")
         col = layout.column(align=True)
         col.label(text="New muscles")
@@ -42,6 +46,7 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
 class _Defaults:
     """The preference defaults, for scripts run without the add-on enabled."""
     section_spacing = 0.0
+    min_confidence = 0.6
     min_sections = 5
     joints_per_muscle = 4
     bulge_factor = 1.0

@@ -30,7 +30,8 @@ Converting this to and from core Muscle lists is muscle_io's job; no core call h
 definitions and their update callbacks, which queue work for muscle_io).
 """
 import bpy
-from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty,
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
+                       IntProperty,
                        PointerProperty, StringProperty)
 
 WRAP_TYPES = (
@@ -93,6 +94,8 @@ class MyoskinMuscle(bpy.types.PropertyGroup):
     wrap_radius: FloatProperty(name="Wrap Radius", default=0.03, min=0.0, soft_max=0.3, subtype='DISTANCE',
                                unit='LENGTH', update=_settings_changed)
     wrap_side: EnumProperty(name="Wrap Side", items=WRAP_SIDES, default='1', update=_settings_changed)
+    origin_rest: FloatVectorProperty(size=3, options={'HIDDEN'}, description="Stored origin (armature space)")
+    insertion_rest: FloatVectorProperty(size=3, options={'HIDDEN'}, description="Stored insertion")
     origin_bone: StringProperty(name="Origin Bone")
     insertion_bone: StringProperty(name="Insertion Bone")
     origin_locator: PointerProperty(name="Origin Locator", type=bpy.types.Object)
@@ -132,10 +135,11 @@ LIMITS = (
 class MyoskinSceneSettings(bpy.types.PropertyGroup):
     """The sidebar's tool settings (what the buttons pass to the operators)."""
     spacing: FloatProperty(name="Section Spacing", description="Distance between cutting planes "
-                           "(0 = automatic: 1/80 of the character's extent)", default=0.0, min=0.0,
+                           "(0 = automatic: 1/80 of the character's extent; -1 = the preferences' value)",
+                           default=-1.0, min=-1.0,
                            soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
-    min_confidence: FloatProperty(name="Min Confidence", description="Drop muscles less significant than this",
-                                  default=0.6, min=0.0, max=1.0)
+    min_confidence: FloatProperty(name="Min Confidence", description="Drop muscles less significant than this "
+                                  "(-1 = the preferences' value)", default=-1.0, min=-1.0, max=1.0)
     limit: EnumProperty(name="Limit To", items=LIMITS, default='ALL')
     vertex_group: StringProperty(name="Vertex Group", description="Region for Limit To / Add Muscle")
     region_source: EnumProperty(name="Region", items=(

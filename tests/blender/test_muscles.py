@@ -224,7 +224,7 @@ def test_mirror_muscle_on_arm():
     assert new.name == src.name + ".mirror"  # the arm's bones have no side suffix
     m = module("muscle_io").item_to_core(arm, new)
     a, b = np.asarray(src_core.root_curve), np.asarray(m.root_curve)
-    assert np.abs(a * [-1, 1, 1] - b).max() < 1e-9
+    assert np.abs(a * [-1, 1, 1] - b).max() < 1e-6  # locators are float32
     v = mesh_co(new.surface)
     assert abs(v[:, 0].mean() + mesh_co(src.surface)[:, 0].mean()) < 1e-4
     # mirroring again replaces the mirror instead of piling up copies

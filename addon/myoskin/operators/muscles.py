@@ -65,8 +65,8 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
     spacing: FloatProperty(name="Section Spacing", description="Distance between cutting planes "
                            "(0 = automatic: 1/80 of the character's extent)", default=-1.0, min=-1.0,
                            soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
-    min_confidence: FloatProperty(name="Min Confidence", description="Drop muscles less significant than this",
-                                  default=0.6, min=0.0, max=1.0)
+    min_confidence: FloatProperty(name="Min Confidence", description="Drop muscles less significant than this "
+                                  "(-1 = preferences)", default=-1.0, min=-1.0, max=1.0)
     min_sections: IntProperty(name="Min Sections", description="Sections a muscle needs (-1 = preferences)",
                               default=-1, min=-1, soft_max=20)
     limit: EnumProperty(name="Limit To", items=LIMITS, default='ALL')
@@ -81,6 +81,7 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
         require_weights(skin, arm)
         spacing = prefs.section_spacing if self.spacing < 0 else self.spacing
         min_sections = prefs.min_sections if self.min_sections < 0 else self.min_sections
+        min_confidence = prefs.min_confidence if self.min_confidence < 0 else self.min_confidence
         wm = context.window_manager
         wm.progress_begin(0, 4)
         try:
@@ -98,7 +99,7 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
                     raise ValueError(f"Vertex group '{self.vertex_group}' is empty")
                 mask = blender_io.welded_mask(source, weld_map, character.num_vertices)
             muscles, report = core_loader.core().extract_muscles(
-                character, spacing=spacing, vertex_mask=mask, min_confidence=self.min_confidence,
+                character, spacing=spacing, vertex_mask=mask, min_confidence=min_confidence,
                 min_sections=min_sections)
             wm.progress_update(2)
             for m in muscles:
