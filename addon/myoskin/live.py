@@ -184,8 +184,8 @@ def predicted_pose(arm_obj, live, frame):
     pose_bones = arm_obj.pose.bones
     rest = live.rest_local
     out = np.empty((len(live.bone_names), 4, 4))
-    for i, name in enumerate(live.bone_names):
-        pb = pose_bones[name]
+    for i, k in enumerate(live.skeleton_indices(pose_bones)):
+        pb = pose_bones[int(k)]
         loc = Vector(_channel(fcurves, pb, "location", 3, frame))
         scale = _channel(fcurves, pb, "scale", 3, frame)
         mode = pb.rotation_mode
@@ -233,7 +233,7 @@ def on_frame_change_pre(scene, depsgraph=None):
         for arm in armatures:
             try:
                 predict_armature(arm, scene.frame_current_final)
-            except (ValueError, RuntimeError) as e:
+            except Exception as e:  # noqa: BLE001  (a handler must never raise into Blender)
                 print(f"Myoskin: live update of '{arm.name}' stopped: {e}")
                 arm.myoskin["live"] = False
     finally:
@@ -254,7 +254,7 @@ def on_update(scene, depsgraph=None):
         for arm in armatures:
             try:
                 update_armature(arm, depsgraph)
-            except (ValueError, RuntimeError) as e:
+            except Exception as e:  # noqa: BLE001  (a handler must never raise into Blender)
                 print(f"Myoskin: live update of '{arm.name}' stopped: {e}")
                 arm.myoskin["live"] = False
     finally:

@@ -52,6 +52,19 @@ def test_batch_blend_extract_bind_bake():
     assert code == 0, log
     assert "extracted" in log and "bound" in log and "baked" in log, log
     assert os.path.isfile(pc2) and os.path.isfile(glb) and os.path.isfile(out)
+    # the glTF carries the helper bones as skin joints and their baked animation
+    import json
+    import struct
+    with open(glb, "rb") as f:
+        data = f.read()
+    length = struct.unpack_from("<I", data, 12)[0]
+    doc = json.loads(data[20:20 + length])
+    joint_nodes = {doc["nodes"][j]["name"] for j in doc["skins"][0]["joints"]}
+    muscle_joints = {n for n in joint_nodes if ".j" in n}
+    assert muscle_joints, joint_nodes
+    animated = {doc["nodes"][c["target"]["node"]]["name"] for a in doc.get("animations", []) for c in a["channels"]
+                if c["target"].get("node") is not None and c["target"]["path"] == "scale"}
+    assert muscle_joints <= animated, muscle_joints - animated
     # the result plays the baked muscles with the add-on disabled
     addon_utils.disable("myoskin", default_set=True)
     try:

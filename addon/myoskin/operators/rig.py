@@ -37,14 +37,22 @@ def backup_weights(skin):
 
 
 def restore_weights(skin):
-    """Give every backed-up group exactly its backed-up members (groups keep their index; missing ones are
-    recreated; groups added since the backup are left alone), then drop the backup."""
+    """Give every backed-up group exactly its backed-up members (groups keep their index; a group renamed
+    since, e.g. with its bone, is found by index; missing ones are recreated; groups added since the backup
+    are left alone), then drop the backup."""
     backup = skin.get(BACKUP_KEY)
     if backup is None:
         return False
     everyone = list(range(len(skin.data.vertices)))
+    names = set(backup.keys())
     for name, entry in sorted(backup.items(), key=lambda kv: kv[1]["index"]):
-        group = skin.vertex_groups.get(name) or skin.vertex_groups.new(name=name)
+        group = skin.vertex_groups.get(name)
+        if group is None:  # renamed with its bone since the bind (a group keeps its index): restore into it
+            index = int(entry["index"])
+            if index < len(skin.vertex_groups) and skin.vertex_groups[index].name not in names:
+                group = skin.vertex_groups[index]
+            else:
+                group = skin.vertex_groups.new(name=name)
         group.remove(everyone)
         ids = np.asarray(entry["vertices"], dtype=np.int64)
         ws = np.asarray(entry["weights"], dtype=np.float64)
@@ -194,6 +202,7 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
         missing = [n for n in names if n not in arm.pose.bones]
         if missing:
             raise ValueError(f"Muscle bone '{missing[0]}' is missing (deleted or renamed?): bind again")
+        live.live_rig(arm).skeleton_indices(arm.pose.bones)  # ValueError naming a renamed skeleton bone
         if arm.animation_data is None:
             arm.animation_data_create()
         if arm.animation_data.action is None:
