@@ -242,8 +242,11 @@ def refresh_muscle(arm_obj, item):
 # ------------------------------------------------------------------------------------------------
 
 
-def unique_name(state, name):
-    taken = {m.name for m in state.muscles}
+def unique_name(state, name, skip_last=False):
+    """`name`, or `name.002`, `name.003`, ... when another muscle has it (skip_last: ignore the last item,
+    the one being added)."""
+    items = list(state.muscles)
+    taken = {m.name for m in (items[:-1] if skip_last else items)}
     if name not in taken:
         return name
     k = 2
@@ -256,7 +259,7 @@ def add_muscle(arm_obj, muscle):
     """Append a core Muscle to the armature's state with its surface and locators; returns the item."""
     state = rig_state(arm_obj)
     item = state.muscles.add()
-    name = unique_name_for_new(state, muscle.name)
+    name = unique_name(state, muscle.name, skip_last=True)
     item["name"] = name
     item.previous_name = name
     muscle.name = name
@@ -268,17 +271,6 @@ def add_muscle(arm_obj, muscle):
         make_locator(arm_obj, item, end, getattr(muscle, end))
     update_wrap_display(arm_obj, item)
     return item
-
-
-def unique_name_for_new(state, name):
-    """A name not used by any muscle but the one being added (the last item, still unnamed)."""
-    taken = {m.name for m in list(state.muscles)[:-1]}
-    if name not in taken:
-        return name
-    k = 2
-    while f"{name}.{k:03d}" in taken:
-        k += 1
-    return f"{name}.{k:03d}"
 
 
 def _remove_objects(item):

@@ -3,7 +3,7 @@
 Small: convert data (blender_io, muscle_io), call the core, report."""
 import bpy
 import numpy as np
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from .. import blender_io, core_loader, muscle_io
 from ..preferences import get_preferences
