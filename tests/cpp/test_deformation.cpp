@@ -386,15 +386,33 @@ TEST(MuscleRig, BoneWrapFollowsTwistBothSides) {
     const MuscleRig rig(arm(), {forearmWrap(side)});
     MuscleRigState st = rig.makeState();
     double prevLen = rig.restLengths()[0];
+    std::vector<Mat4> prev = rig.bindMatrices();
     bool wrapped = false;
+    int transitions = 0;
     for (int k = 0; k <= 600; ++k) {
       rig.evaluate(armPose(0.0, side * k * 0.25 * kPi / 180), st);
-      wrapped = wrapped || st.wrapped[0];
+      if (bool(st.wrapped[0]) != wrapped) ++transitions, wrapped = st.wrapped[0];
       EXPECT_LT(std::abs(st.length[0] - prevLen), 1e-3) << "side " << side << " step " << k;
       prevLen = st.length[0];
-      for (int j = 0; j < rig.numJoints(); ++j) ASSERT_TRUE(st.jointMatrices[j].allFinite());
+      for (int j = 0; j < rig.numJoints(); ++j) {
+        ASSERT_TRUE(st.jointMatrices[j].allFinite());
+        // A 0.25 degree twist moves points 3 cm from the axis by 0.13 mm; frames turn by about as much.
+        EXPECT_LT((st.jointMatrices[j].col(3) - prev[j].col(3)).norm(), 1e-3) << "joint " << j << " step " << k;
+        EXPECT_LT((st.jointMatrices[j].topLeftCorner<3, 3>() - prev[j].topLeftCorner<3, 3>()).norm(), 0.02)
+            << "joint " << j << " step " << k;
+      }
+      prev = st.jointMatrices;
     }
+    EXPECT_EQ(transitions, 1) << "side " << side << ": the wrap starts once and stays";
     EXPECT_TRUE(wrapped) << "side " << side << ": a 150 degree twist wraps the muscle round the forearm";
+    // Wrapped joints sit outside the cylinder, less the muscle's 4 mm bow off its path (a straight line
+    // would pass within a few millimetres of the axis).
+    const Mat4 fa = armPose(0.0, side * 150 * kPi / 180).matrices[arm().find("forearm")];
+    const Vec3 ax = fa.block<3, 1>(0, 1).normalized(), c = fa.block<3, 1>(0, 3);
+    for (int j = 0; j < rig.numJoints(); ++j) {
+      const Vec3 d = st.jointMatrices[j].block<3, 1>(0, 3) - c;
+      if (d.dot(ax) > 0) EXPECT_GT((d - d.dot(ax) * ax).norm(), 0.02 - 0.004) << "joint " << j;
+    }
   }
 }
 
