@@ -288,3 +288,16 @@ TEST(PointCache, WriteReadRoundTripAndBadFiles) {
   EXPECT_EQ(readPC2(path).frames.size(), 1u);
   std::filesystem::remove_all(dir);
 }
+
+TEST(Skinner, PortableKernelGivesTheSameResultAsTheVectorKernel) {
+  const RandomSkin s = randomSkin(3000, 8, 20, 21);
+  const Skinner skinner(s.rest, s.weights, 20);
+  PointsF fast, portable;
+  skinner.deform(s.transforms, fast);
+  setenv("MYOSKIN_SCALAR_SKINNING", "1", 1);
+  skinner.deform(s.transforms, portable);
+  unsetenv("MYOSKIN_SCALAR_SKINNING");
+  EXPECT_LT((fast - portable).cwiseAbs().maxCoeff(), 1e-6f);
+  Points ref = reference(s.rest, s.weights, s.transforms);
+  EXPECT_LT((portable.cast<double>() - ref).cwiseAbs().maxCoeff(), 2e-6);
+}
