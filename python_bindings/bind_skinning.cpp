@@ -43,27 +43,6 @@ Triangles trianglesArg(const IntArray& a, const char* name, Eigen::Index numVert
   return t;
 }
 
-// #N by 4 by 4 matrices (float64).
-std::vector<Mat4> matricesArg(const DoubleArray& a, const char* name) {
-  if (a.ndim() != 3 || a.shape(1) != 4 || a.shape(2) != 4)
-    throw InputError(std::string(name) + " must be #N by 4 by 4, got shape " + shapeOf(a));
-  std::vector<Mat4> out(a.shape(0));
-  auto r = a.unchecked<3>();
-  for (py::ssize_t i = 0; i < a.shape(0); ++i)
-    for (int j = 0; j < 4; ++j)
-      for (int k = 0; k < 4; ++k) out[i](j, k) = r(i, j, k);
-  return out;
-}
-
-py::array_t<double> matricesOut(const std::vector<Mat4>& m) {
-  py::array_t<double> out({static_cast<py::ssize_t>(m.size()), py::ssize_t(4), py::ssize_t(4)});
-  auto w = out.mutable_unchecked<3>();
-  for (size_t i = 0; i < m.size(); ++i)
-    for (int j = 0; j < 4; ++j)
-      for (int k = 0; k < 4; ++k) w(i, j, k) = m[i](j, k);
-  return out;
-}
-
 // #V by K joints + weights (the same shape; 1-D arrays are one influence per vertex).
 SkinWeights weightsArg(const IntArray& joints, const DoubleArray& weights, Eigen::Index numVertices) {
   auto cols = [](const py::array& a) { return a.ndim() == 1 ? py::ssize_t(1) : a.shape(1); };
@@ -82,15 +61,6 @@ SkinWeights weightsArg(const IntArray& joints, const DoubleArray& weights, Eigen
   std::copy(joints.data(), joints.data() + joints.size(), w.joints.data());
   std::copy(weights.data(), weights.data() + weights.size(), w.weights.data());
   return w;
-}
-
-Pose poseArg(const Character& c, const DoubleArray& poseMatrices) {
-  Pose pose;
-  pose.matrices = matricesArg(poseMatrices, "pose_matrices");
-  if (static_cast<int>(pose.matrices.size()) != c.skeleton.numBones())
-    throw InputError("pose_matrices has " + std::to_string(pose.matrices.size()) + " matrices for " +
-                     std::to_string(c.skeleton.numBones()) + " bones");
-  return pose;
 }
 
 py::array_t<float> newPointsF(int n) { return py::array_t<float>({static_cast<py::ssize_t>(n), py::ssize_t(3)}); }
@@ -119,7 +89,7 @@ void bindSkinning(py::module_& m) {
       .def(
           "deform",
           [](const Skinner& s, const DoubleArray& transforms) {
-            const std::vector<Mat4> t = matricesArg(transforms, "transforms");
+            const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
             py::array_t<float> out = newPointsF(s.numVertices());
             float* data = out.mutable_data();
             {
@@ -136,7 +106,7 @@ void bindSkinning(py::module_& m) {
                 !(out.flags() & py::array::c_style) || !out.writeable())
               throw InputError("out must be a writeable C-contiguous float32 array of shape (" +
                                std::to_string(s.numVertices()) + ", 3), got " + shapeOf(out));
-            const std::vector<Mat4> t = matricesArg(transforms, "transforms");
+            const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
             float* data = out.mutable_data();
             py::gil_scoped_release release;
             s.deform(t, data);
@@ -159,7 +129,7 @@ void bindSkinning(py::module_& m) {
       [](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, const DoubleArray& transforms) {
         const Points p = pointsArg(rest, "rest_vertices");
         const SkinWeights w = weightsArg(joints, weights, p.rows());
-        const std::vector<Mat4> t = matricesArg(transforms, "transforms");
+        const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
         py::gil_scoped_release release;
         return skin(p, w, t);
       },
@@ -170,35 +140,11 @@ void bindSkinning(py::module_& m) {
   // Poses and transforms
   // ==========================================================================
   m.def(
-      "pose_from_local_rotations",
-      [](const Character& c, const DoubleArray& rotations) {
-        if (rotations.ndim() != 2 || rotations.shape(1) != 4)
-          throw InputError("rotations must be #B by 4 quaternions (w, x, y, z), got shape " + shapeOf(rotations));
-        if (rotations.shape(0) != c.skeleton.numBones())
-          throw InputError("rotations has " + std::to_string(rotations.shape(0)) + " rows for " +
-                           std::to_string(c.skeleton.numBones()) + " bones");
-        auto r = rotations.unchecked<2>();
-        std::vector<Eigen::Quaterniond> q;
-        for (py::ssize_t b = 0; b < rotations.shape(0); ++b) {
-          const Eigen::Quaterniond qb(r(b, 0), r(b, 1), r(b, 2), r(b, 3));
-          if (!qb.coeffs().allFinite() || qb.norm() < 1e-12)
-            throw InputError("rotations: row " + std::to_string(b) + " is not a usable quaternion");
-          q.push_back(qb);
-        }
-        return matricesOut(poseFromLocalRotations(c.skeleton, q).matrices);
-      },
-      py::arg("character"), py::arg("rotations"),
-      "#B by 4 by 4 posed bone matrices (mesh space, like PoseBone.matrix) from per-bone local rotations "
-      "(#B by 4 quaternions w, x, y, z, like PoseBone.rotation_quaternion).");
-  m.def(
-      "rest_pose", [](const Character& c) { return matricesOut(restPose(c.skeleton).matrices); }, py::arg("character"),
-      "#B by 4 by 4 posed matrices of the rest pose (the rest matrices).");
-  m.def(
       "skeleton_transforms",
       [](const Character& c, const DoubleArray& poseMatrices) {
         std::vector<Mat4> t;
-        skeletonTransforms(c.skeleton, poseArg(c, poseMatrices), t);
-        return matricesOut(t);
+        skeletonTransforms(c.skeleton, poseFromArray(poseMatrices, c.skeleton.numBones()), t);
+        return matricesToArray(t);
       },
       py::arg("character"), py::arg("pose_matrices"),
       "#B by 4 by 4 skinning transforms pose_i * rest_i^-1 (plain LBS) for #B by 4 by 4 posed matrices.");
@@ -240,7 +186,7 @@ void bindSkinning(py::module_& m) {
         const Points r = pointsArg(rest, "rest"), d = pointsArg(deformed, "deformed");
         const SkinWeights w = weightsArg(joints, weights, r.rows());
         return localBulge(r, trianglesArg(triangles, "triangles", r.rows()), d, w,
-                          matricesArg(skeletonTransforms, "skeleton_transforms"));
+                          matricesFromArray(skeletonTransforms, "skeleton_transforms"));
       },
       py::arg("rest"), py::arg("triangles"), py::arg("deformed"), py::arg("weight_joints"), py::arg("weight_values"),
       py::arg("skeleton_transforms"),

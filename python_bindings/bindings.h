@@ -5,6 +5,11 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <vector>
+
+#include "myoskin/skeleton.h"
+#include "myoskin/types.h"
+
 namespace myoskin::python {
 
 namespace py = pybind11;
@@ -13,7 +18,20 @@ void bindCharacter(py::module_& m);
 void bindMuscles(py::module_& m);
 void bindGenerate(py::module_& m);
 void bindExtraction(py::module_& m);
+void bindDeformation(py::module_& m);
 void bindSkinning(py::module_& m);
+
+// ============================================================================
+// Array conversions shared by the parts (array_convert.cpp)
+// ============================================================================
+
+using MatrixStack = py::array_t<double, py::array::c_style | py::array::forcecast>;
+// N by 4 by 4 array -> matrices; InputError naming `what` on another shape.
+std::vector<Mat4> matricesFromArray(const MatrixStack& a, const char* what);
+// matrices -> N by 4 by 4 array (a copy).
+py::array_t<double> matricesToArray(const std::vector<Mat4>& m);
+// #B by 4 by 4 posed bone matrices (Blender's PoseBone.matrix) -> Pose; InputError on another size.
+Pose poseFromArray(const MatrixStack& a, int numBones);
 
 
 }  // namespace myoskin::python

@@ -35,7 +35,7 @@ def bend(core, character, degrees, bone="forearm", axis=(0, 0, 1)):
     q = np.tile([1.0, 0.0, 0.0, 0.0], (len(names), 1))
     half = np.radians(degrees) / 2
     q[names.index(bone)] = [np.cos(half), *(np.sin(half) * np.asarray(axis, dtype=float))]
-    return core.pose_from_local_rotations(character, q)
+    return core.pose_from_rotations(character, q)
 
 
 def test_skinner_matches_numpy_with_scaled_joints_and_threads(core, arm):
@@ -89,7 +89,7 @@ def test_bad_arrays_raise_value_errors_naming_the_index(core, arm):
     with pytest.raises(ValueError, match="rows for"):
         core.Skinner(v, j[:-1], w[:-1], nb)
     skinner = core.Skinner(v, j, w, nb)
-    with pytest.raises(ValueError, match="#N by 4 by 4"):
+    with pytest.raises(ValueError, match="N by 4 by 4"):
         skinner.deform(np.zeros((nb, 3, 4)))
     with pytest.raises(ValueError, match=f"3 transforms for {nb} joints"):
         skinner.deform(np.tile(np.eye(4), (3, 1, 1)))
@@ -99,10 +99,10 @@ def test_bad_arrays_raise_value_errors_naming_the_index(core, arm):
         skinner.deform(t)
     with pytest.raises(ValueError, match="out must be"):
         skinner.deform_into(np.tile(np.eye(4), (nb, 1, 1)), np.empty((5, 3), dtype=np.float32))
-    with pytest.raises(ValueError, match="rows for"):
-        core.pose_from_local_rotations(arm, np.tile([1.0, 0, 0, 0], (nb + 1, 1)))
-    with pytest.raises(ValueError, match="row 1 is not a usable quaternion"):
-        core.pose_from_local_rotations(arm, np.array([[1.0, 0, 0, 0], [0, 0, 0, 0]] + [[1.0, 0, 0, 0]] * (nb - 2)))
+    with pytest.raises(ValueError, match="one quaternion"):
+        core.pose_from_rotations(arm, np.tile([1.0, 0, 0, 0], (nb + 1, 1)))
+    with pytest.raises(ValueError, match="quaternion of bone '.*' is not usable"):
+        core.pose_from_rotations(arm, np.array([[1.0, 0, 0, 0], [0, 0, 0, 0]] + [[1.0, 0, 0, 0]] * (nb - 2)))
 
 
 def test_elbow_bend_volume_and_bulge_measures(core, arm):

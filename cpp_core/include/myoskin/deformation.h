@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "myoskin/mesh.h"
 #include "myoskin/muscle.h"
 #include "myoskin/skeleton.h"
 #include "myoskin/types.h"
@@ -62,6 +63,8 @@ class MuscleRig {
   const std::vector<Mat4>& bindMatrices() const;        // #J rest joint matrices (rigid: scale 1)
   const std::vector<double>& restLengths() const;       // #M rest action-path length
   const std::vector<Muscle>& muscles() const;
+  const Skeleton& skeleton() const;
+  const Mesh& restSurface(int muscle) const;            // the surface evaluate() deforms (lofted if absent)
 
   // A state sized for this rig (allocates once).
   MuscleRigState makeState() const;

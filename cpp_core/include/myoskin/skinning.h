@@ -42,13 +42,13 @@ struct HybridWeightOptions {
 
 // Combined weights (#V by maxInfluences over combined joints [0, #B + #J)) from the skeleton weights
 // (#V by K over the #B bones) and the rig's muscles: each muscle's weight at a vertex comes from the
-// vertex's distance to the muscle's rest surface (Muscle::surface, lofted from the sections when empty)
+// vertex's distance to the muscle's rest surface (MuscleRig::restSurface)
 // and the muscle's side (the skin normal must face away from the muscle), times the dominance; it is
 // smoothed over the skin, split linearly between the two muscle joints nearest along the muscle, and the
 // skeleton weights (normalised) fill the remainder. Every row sums to 1 where the skeleton row was
 // non-empty (sum > 1e-4); empty rows stay empty. Throws InputError on mismatched sizes or bad options.
-SkinWeights computeHybridWeights(const Mesh& skin, const Skeleton& skeleton, const SkinWeights& skeletonWeights,
-                                 const MuscleRig& rig, const HybridWeightOptions& options = {});
+SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWeights, const MuscleRig& rig,
+                                 const HybridWeightOptions& options = {});
 
 // ============================================================================
 // Transforms

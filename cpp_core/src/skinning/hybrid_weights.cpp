@@ -8,7 +8,6 @@
 #include <limits>
 
 #include "myoskin/errors.h"
-#include "myoskin/extraction.h"
 #include "myoskin/skinning.h"
 
 namespace myoskin {
@@ -83,10 +82,10 @@ void checkOptions(const HybridWeightOptions& o, const MuscleRig& rig) {
 
 }  // namespace
 
-SkinWeights computeHybridWeights(const Mesh& skin, const Skeleton& skeleton, const SkinWeights& skeletonWeights,
-                                 const MuscleRig& rig, const HybridWeightOptions& options) {
+SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWeights, const MuscleRig& rig,
+                                 const HybridWeightOptions& options) {
   validateMesh(skin, "skin");
-  const int nv = skin.numVertices(), nb = skeleton.numBones();
+  const int nv = skin.numVertices(), nb = rig.skeleton().numBones();
   validateSkinWeights(skeletonWeights, nv, nb);
   checkOptions(options, rig);
   for (int j = 0; j < rig.numJoints(); ++j)
@@ -107,7 +106,7 @@ SkinWeights computeHybridWeights(const Mesh& skin, const Skeleton& skeleton, con
     double dominance = options.dominance;
     if (auto it = options.muscleDominance.find(muscle.name); it != options.muscleDominance.end()) dominance *= it->second;
     if (dominance <= 0.0 || muscle.sections.empty() || rig.jointCount(m) < 1) continue;
-    const Mesh surface = muscle.surface.numVertices() > 0 ? muscle.surface : loftMuscleSurface(muscle);
+    const Mesh& surface = rig.restSurface(m);
     double radius = 0.0;
     for (const MuscleSection& s : muscle.sections) radius += std::sqrt(std::max(s.a, 0.0) * std::max(s.b, 0.0));
     radius /= static_cast<double>(muscle.sections.size());

@@ -1,0 +1,389 @@
+// MuscleRig: a muscle's rest geometry stored in the frame of its rest action path, re-mapped onto the
+// posed path each evaluate(). Stations evenly spaced in normalised arc length carry a transform
+//   M_j = T(P_j) R(F_j) diag(s_j, lambda, s_j)       (Y = path tangent, Blender's bone convention);
+// muscle joints sit on stations (so their matrices are exactly translation * rotation * scale, which a
+// Blender bone can hold), and surface vertices blend the two stations around their rest path parameter.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "joints/bulge.h"
+#include "myoskin/deformation.h"
+#include "myoskin/errors.h"
+#include "myoskin/extraction.h"
+#include "paths/action_path.h"
+
+namespace myoskin {
+
+namespace {
+
+constexpr int kMaxJoints = 64;
+constexpr int kMaxStations = 2 * kMaxJoints + 1;
+constexpr double kMinStretch = 1e-3, kMaxStretch = 1e3;
+
+// Orthonormal rotation part of a posed bone matrix (posed bones may carry scale).
+Mat3 rotationOf(const Mat4& m) {
+  Mat3 r = m.topLeftCorner<3, 3>();
+  Vec3 y = r.col(1).normalized();
+  Vec3 x = (r.col(0) - r.col(0).dot(y) * y).normalized();
+  Mat3 out;
+  out.col(0) = x;
+  out.col(1) = y;
+  out.col(2) = x.cross(y);
+  return out;
+}
+
+Vec3 transformPoint(const Mat4& m, const Vec3& p) { return m.topLeftCorner<3, 3>() * p + m.topRightCorner<3, 1>(); }
+
+// A frame with Y along `y` whose X is the component of `xHint` perpendicular to it.
+Mat3 frameFromY(const Vec3& y, const Vec3& xHint) {
+  Vec3 Y = y.normalized();
+  Vec3 X = xHint - xHint.dot(Y) * Y;
+  if (X.norm() < 1e-9) X = Y.unitOrthogonal();
+  X.normalize();
+  Mat3 F;
+  F.col(0) = X;
+  F.col(1) = Y;
+  F.col(2) = X.cross(Y);
+  return F;
+}
+
+bool finiteMatrix(const Mat4& m) { return m.allFinite(); }
+
+}  // namespace
+
+// ============================================================================
+// The rest model of one muscle
+// ============================================================================
+
+struct MuscleModel {
+  int originBone = -1, insertionBone = -1, wrapBone = -1, sideBone = -1;
+  WrapType wrap = WrapType::None;
+  double radius = 0.0;
+  int side = 1;
+  Vec3 originLocal, insertionLocal;  // in the rest frames of their bones
+  Vec3 sideLocal = Vec3::Zero();     // joint wrap: side direction in sideBone's rest frame
+  double restLength = 0.0;
+  Vec3 tangentLocal;                 // rest start tangent in the origin bone's frame
+  Mat3 frameLocal;                   // rest start frame in the origin bone's frame
+  int stations = 0, jointStride = 0, joints = 0;  // joint k sits on station (2k + 1) * jointStride
+  std::vector<Vec3> jointOffset;     // #joints rest root-curve point in its station's frame
+  joints::BulgeProfile bulge;
+  // Surface: each vertex blends stations j and j + 1 with weights (1 - alpha, alpha); local
+  // coordinates in each station's rest frame.
+  Mesh surface;
+  std::vector<int> vertexStation;
+  std::vector<double> vertexAlpha;
+  std::vector<Vec3> localA, localB;
+};
+
+struct MuscleRig::Impl {
+  Skeleton skeleton;
+  std::vector<Muscle> muscles;
+  std::vector<MuscleModel> models;
+  std::vector<std::string> jointNames;
+  std::vector<int> jointMuscle, jointParent, offsets;
+  std::vector<Mat4> bind;
+  std::vector<double> restLengths;
+
+  // Posed origin/insertion and the action path of muscle m.
+  void posedPath(int m, const Pose& pose, paths::ActionPath& path) const;
+  // Start frame of the posed path (rest frame carried by the origin bone, turned onto the tangent).
+  Mat3 startFrame(int m, const Pose& pose, const paths::ActionPath& path) const;
+};
+
+void MuscleRig::Impl::posedPath(int m, const Pose& pose, paths::ActionPath& path) const {
+  const MuscleModel& mm = models[m];
+  const Vec3 O = transformPoint(pose.matrices[mm.originBone], mm.originLocal);
+  const Vec3 I = transformPoint(pose.matrices[mm.insertionBone], mm.insertionLocal);
+  switch (mm.wrap) {
+    case WrapType::None: paths::straightPath(O, I, path); return;
+    case WrapType::Joint: {
+      const Mat4& wb = pose.matrices[mm.wrapBone];
+      const Vec3 side = rotationOf(pose.matrices[mm.sideBone]) * mm.sideLocal;
+      paths::jointWrapPath(O, I, wb.topRightCorner<3, 1>(), mm.radius, side, path);
+      return;
+    }
+    case WrapType::Bone: {
+      const Mat4& wb = pose.matrices[mm.wrapBone];
+      const Mat3 R = rotationOf(wb);
+      // Right-handed (e1, e2, axis) = (Z, X, Y) of the bone.
+      paths::boneWrapPath(O, I, wb.topRightCorner<3, 1>(), R.col(2), R.col(0), R.col(1), mm.radius, mm.side, path);
+      return;
+    }
+  }
+}
+
+Mat3 MuscleRig::Impl::startFrame(int m, const Pose& pose, const paths::ActionPath& path) const {
+  const MuscleModel& mm = models[m];
+  const Mat3 R = rotationOf(pose.matrices[mm.originBone]);
+  Vec3 p, t;
+  paths::pointAt(path, 0.0, p, t);
+  if (path.length < 1e-12) t = R * mm.tangentLocal;  // origin on the insertion: keep the rest direction
+  const Vec3 tLocal = R.transpose() * t;
+  const Mat3 turn = Eigen::Quaterniond::FromTwoVectors(mm.tangentLocal, tLocal).toRotationMatrix();
+  Mat3 F = R * turn * mm.frameLocal;
+  return frameFromY(t, F.col(0));  // re-orthonormalise exactly onto the tangent
+}
+
+// ============================================================================
+// Construction
+// ============================================================================
+
+MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscles, const MuscleRigOptions& options) {
+  validateSkeleton(skeleton);
+  validateMuscles(muscles);
+  auto impl = std::make_shared<Impl>();
+  impl->skeleton = skeleton;
+  impl->muscles = muscles;
+  const Pose rest = restPose(skeleton);
+  auto boneIndex = [&](const Muscle& mu, const std::string& name, const char* what) {
+    const int b = skeleton.find(name);
+    if (b < 0) throw InputError("muscle '" + mu.name + "': " + what + " bone '" + name + "' is not in the skeleton");
+    return b;
+  };
+
+  for (size_t m = 0; m < muscles.size(); ++m) {
+    const Muscle& mu = muscles[m];
+    MuscleModel mm;
+    mm.originBone = boneIndex(mu, mu.origin.bone, "origin");
+    mm.insertionBone = boneIndex(mu, mu.insertion.bone, "insertion");
+    const Vec3 O = mu.origin.position, I = mu.insertion.position;
+    if ((I - O).norm() < 1e-6)
+      throw InputError("muscle '" + mu.name + "': origin and insertion coincide (less than 1 micrometre apart)");
+    mm.originLocal = rest.matrices[mm.originBone].inverse().topLeftCorner<3, 4>() * O.homogeneous();
+    mm.insertionLocal = rest.matrices[mm.insertionBone].inverse().topLeftCorner<3, 4>() * I.homogeneous();
+    mm.wrap = mu.wrap.type;
+    mm.side = mu.wrap.side >= 0 ? 1 : -1;
+    if (mm.wrap != WrapType::None) {
+      mm.wrapBone = boneIndex(mu, mu.wrap.bone, "wrap");
+      mm.radius = mu.wrap.radius;
+      if (!std::isfinite(mm.radius) || mm.radius <= 0)
+        throw InputError("muscle '" + mu.name + "': wrap radius must be positive and finite");
+      const Bone& wb = skeleton.bones[mm.wrapBone];
+      if (mm.wrap == WrapType::Joint) {
+        const Vec3 J = wb.head;
+        if ((O - J).norm() <= mm.radius || (I - J).norm() <= mm.radius)
+          throw InputError("muscle '" + mu.name + "': origin or insertion lies inside the joint sphere of '" +
+                           wb.name + "' (radius " + std::to_string(mm.radius) + " m)");
+        // Side: towards the muscle's belly from the joint centre, carried by the joint's parent bone.
+        Vec3 belly = 0.5 * (O + I);
+        double best = std::numeric_limits<double>::infinity();
+        for (const Vec3& c : mu.rootCurve)
+          if ((c - J).norm() < best) best = (c - J).norm(), belly = c;
+        Vec3 side = belly - J;
+        const Vec3 along = (I - O).normalized();
+        side -= side.dot(along) * along;
+        if (side.norm() < 1e-9) side = along.unitOrthogonal();
+        side = mm.side * side.normalized();
+        mm.sideBone = wb.parent >= 0 ? wb.parent : mm.wrapBone;
+        mm.sideLocal = rotationOf(rest.matrices[mm.sideBone]).transpose() * side;
+      } else {
+        const Vec3 axis = (wb.tail - wb.head).normalized();
+        auto radial = [&](const Vec3& p) { Vec3 d = p - wb.head; return (d - d.dot(axis) * axis).norm(); };
+        if (radial(O) <= mm.radius || radial(I) <= mm.radius)
+          throw InputError("muscle '" + mu.name + "': origin or insertion lies inside the cylinder round '" +
+                           wb.name + "' (radius " + std::to_string(mm.radius) + " m)");
+      }
+    }
+    mm.joints = options.jointsOverride > 0 ? options.jointsOverride : mu.joints;
+    if (mm.joints < 1 || mm.joints > kMaxJoints)
+      throw InputError("muscle '" + mu.name + "': joints must be in [1, " + std::to_string(kMaxJoints) + "], got " +
+                       std::to_string(mm.joints));
+    mm.jointStride = std::max(1, (32 + mm.joints - 1) / mm.joints);
+    mm.stations = 2 * mm.joints * mm.jointStride + 1;
+    while (mm.stations > kMaxStations) --mm.jointStride, mm.stations = 2 * mm.joints * mm.jointStride + 1;
+    impl->models.push_back(mm);
+
+    // Rest path and its start frame (X from the origin bone's X, made perpendicular to the tangent).
+    paths::ActionPath path;
+    impl->posedPath(static_cast<int>(m), rest, path);
+    MuscleModel& mr = impl->models.back();
+    mr.restLength = path.length;
+    const Mat3 Rb = rotationOf(rest.matrices[mr.originBone]);
+    Vec3 p0, t0;
+    paths::pointAt(path, 0.0, p0, t0);
+    mr.tangentLocal = Rb.transpose() * t0;
+    Mat3 F0 = frameFromY(t0, Rb.col(0));
+    mr.frameLocal = Rb.transpose() * F0;
+    F0 = impl->startFrame(static_cast<int>(m), rest, path);
+
+    const int S = mr.stations;
+    std::vector<double> sig(S);
+    for (int j = 0; j < S; ++j) sig[j] = path.length * j / (S - 1);
+    std::vector<Mat3> F(S);
+    std::vector<Vec3> P(S);
+    paths::framesAt(path, F0, sig.data(), S, F.data(), P.data());
+
+    // Path parameter (fractional station index) and the two stations' local coordinates of a point.
+    auto project = [&](const Vec3& v, int& j, double& alpha) {
+      double best = std::numeric_limits<double>::infinity();
+      j = 0, alpha = 0;
+      for (int s = 0; s + 1 < S; ++s) {
+        const Vec3 d = P[s + 1] - P[s];
+        const double len2 = d.squaredNorm();
+        const double t = len2 > 1e-30 ? std::clamp((v - P[s]).dot(d) / len2, 0.0, 1.0) : 0.0;
+        const double dist = (v - P[s] - t * d).squaredNorm();
+        if (dist < best) best = dist, j = s, alpha = t;
+      }
+    };
+
+    // Surface (lofted when the muscle has none) and its vertices' path coordinates.
+    mr.surface = mu.surface.numVertices() > 0 ? mu.surface : loftMuscleSurface(mu, SurfaceOptions{});
+    const int nv = mr.surface.numVertices();
+    mr.vertexStation.resize(nv);
+    mr.vertexAlpha.resize(nv);
+    mr.localA.resize(nv);
+    mr.localB.resize(nv);
+    for (int v = 0; v < nv; ++v) {
+      const Vec3 x = mr.surface.vertices.row(v).transpose();
+      int j;
+      double alpha;
+      project(x, j, alpha);
+      mr.vertexStation[v] = j;
+      mr.vertexAlpha[v] = alpha;
+      mr.localA[v] = F[j].transpose() * (x - P[j]);
+      mr.localB[v] = F[j + 1].transpose() * (x - P[j + 1]);
+    }
+
+    // Bulge profile from the rest surface's slice areas at the stations.
+    std::vector<double> areas(S);
+    for (int j = 0; j < S; ++j) areas[j] = joints::sliceArea(mr.surface, P[j], F[j].col(1));
+    mr.bulge = joints::makeBulgeProfile(areas, mu.bulge);
+
+    // Joints: on stations (2k + 1) * stride, at the rest root curve's point of that path parameter.
+    std::vector<std::pair<double, Vec3>> curve;  // (fractional station, point)
+    for (const Vec3& c : mu.rootCurve) {
+      int j;
+      double alpha;
+      project(c, j, alpha);
+      curve.emplace_back(j + alpha, c);
+    }
+    std::stable_sort(curve.begin(), curve.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    const int first = static_cast<int>(impl->bind.size());
+    impl->offsets.push_back(first);
+    for (int k = 0; k < mr.joints; ++k) {
+      const int j = (2 * k + 1) * mr.jointStride;
+      Vec3 c = P[j];
+      if (!curve.empty()) {
+        auto it = std::lower_bound(curve.begin(), curve.end(), double(j),
+                                   [](const auto& e, double x) { return e.first < x; });
+        if (it == curve.begin()) c = it->second;
+        else if (it == curve.end()) c = curve.back().second;
+        else {
+          const auto& lo = *(it - 1);
+          const double w = it->first > lo.first ? (j - lo.first) / (it->first - lo.first) : 0.0;
+          c = (1 - w) * lo.second + w * it->second;
+        }
+      }
+      mr.jointOffset.push_back(F[j].transpose() * (c - P[j]));
+      Mat4 B = Mat4::Identity();
+      B.topLeftCorner<3, 3>() = F[j];
+      B.topRightCorner<3, 1>() = c;
+      impl->bind.push_back(B);
+      impl->jointNames.push_back(mu.name + ".j" + std::to_string(k));
+      impl->jointMuscle.push_back(static_cast<int>(m));
+      impl->jointParent.push_back(mr.originBone);
+    }
+    impl->restLengths.push_back(mr.restLength);
+  }
+  impl_ = impl;
+}
+
+// ============================================================================
+// Queries
+// ============================================================================
+
+int MuscleRig::numMuscles() const { return static_cast<int>(impl_->models.size()); }
+int MuscleRig::numJoints() const { return static_cast<int>(impl_->bind.size()); }
+int MuscleRig::jointOffset(int m) const { return impl_->offsets.at(m); }
+int MuscleRig::jointCount(int m) const { return impl_->models.at(m).joints; }
+const std::vector<std::string>& MuscleRig::jointNames() const { return impl_->jointNames; }
+const std::vector<int>& MuscleRig::jointMuscle() const { return impl_->jointMuscle; }
+const std::vector<int>& MuscleRig::jointParentBone() const { return impl_->jointParent; }
+const std::vector<Mat4>& MuscleRig::bindMatrices() const { return impl_->bind; }
+const std::vector<double>& MuscleRig::restLengths() const { return impl_->restLengths; }
+const std::vector<Muscle>& MuscleRig::muscles() const { return impl_->muscles; }
+const Skeleton& MuscleRig::skeleton() const { return impl_->skeleton; }
+const Mesh& MuscleRig::restSurface(int m) const { return impl_->models.at(m).surface; }
+
+MuscleRigState MuscleRig::makeState() const {
+  MuscleRigState s;
+  const int M = numMuscles();
+  s.jointMatrices.assign(numJoints(), Mat4::Identity());
+  s.length.assign(M, 0.0);
+  s.stretch.assign(M, 1.0);
+  s.wrapped.assign(M, 0);
+  s.surfaces.resize(M);
+  for (int m = 0; m < M; ++m) s.surfaces[m] = impl_->models[m].surface.vertices;
+  return s;
+}
+
+// ============================================================================
+// Evaluation
+// ============================================================================
+
+void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfaces) const {
+  const Impl& im = *impl_;
+  if (static_cast<int>(pose.matrices.size()) != im.skeleton.numBones())
+    throw InputError("MuscleRig::evaluate: pose has " + std::to_string(pose.matrices.size()) +
+                     " bone matrices, the skeleton has " + std::to_string(im.skeleton.numBones()));
+  for (size_t b = 0; b < pose.matrices.size(); ++b)
+    if (!finiteMatrix(pose.matrices[b]))
+      throw InputError("MuscleRig::evaluate: pose matrix of bone '" + im.skeleton.bones[b].name + "' is not finite");
+  if (state.jointMatrices.size() != im.bind.size() || state.length.size() != im.models.size() ||
+      state.surfaces.size() != im.models.size())
+    throw InputError("MuscleRig::evaluate: state was not made by this rig's makeState()");
+
+  double sig[kMaxStations];
+  Mat3 F[kMaxStations];
+  Vec3 P[kMaxStations];
+  for (int m = 0; m < numMuscles(); ++m) {
+    const MuscleModel& mm = im.models[m];
+    paths::ActionPath path;
+    im.posedPath(m, pose, path);
+    const Mat3 F0 = im.startFrame(m, pose, path);
+    const double lambda = std::clamp(path.length / mm.restLength, kMinStretch, kMaxStretch);
+    const double mu = joints::bulgeMu(mm.bulge, lambda);
+    state.length[m] = path.length;
+    state.stretch[m] = lambda;
+    state.wrapped[m] = path.wrapped ? 1 : 0;
+    const int S = mm.stations;
+
+    // Joints: frames at their stations only.
+    for (int k = 0; k < mm.joints; ++k) sig[k] = path.length * ((2 * k + 1) * mm.jointStride) / (S - 1);
+    paths::framesAt(path, F0, sig, mm.joints, F, P);
+    for (int k = 0; k < mm.joints; ++k) {
+      const int j = (2 * k + 1) * mm.jointStride;
+      const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);
+      Mat3 RS = F[k];
+      RS.col(0) *= s;
+      RS.col(1) *= lambda;
+      RS.col(2) *= s;
+      Mat4& J = state.jointMatrices[im.offsets[m] + k];
+      J.setIdentity();
+      J.topLeftCorner<3, 3>() = RS;
+      J.topRightCorner<3, 1>() = P[k] + RS * mm.jointOffset[k];
+    }
+    if (!withSurfaces) continue;
+
+    // Surface: every station, then each vertex blends its two stations.
+    for (int j = 0; j < S; ++j) sig[j] = path.length * j / (S - 1);
+    paths::framesAt(path, F0, sig, S, F, P);
+    for (int j = 0; j < S; ++j) {
+      const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);
+      F[j].col(0) *= s;
+      F[j].col(1) *= lambda;
+      F[j].col(2) *= s;
+    }
+    Points& out = state.surfaces[m];
+    for (int v = 0; v < static_cast<int>(mm.vertexStation.size()); ++v) {
+      const int j = mm.vertexStation[v];
+      const double a = mm.vertexAlpha[v];
+      const Vec3 x = (1 - a) * (P[j] + F[j] * mm.localA[v]) + a * (P[j + 1] + F[j + 1] * mm.localB[v]);
+      out.row(v) = x.transpose();
+    }
+  }
+}
+
+}  // namespace myoskin

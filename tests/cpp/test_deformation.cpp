@@ -1,0 +1,537 @@
+// Muscle deformation (issue 4): action paths, carried frames, volume-preserving bulge, muscle joints.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdlib>
+#include <new>
+#include <random>
+
+#include "joints/bulge.h"
+#include "myoskin/deformation.h"
+#include "myoskin/errors.h"
+#include "myoskin/extraction.h"
+#include "myoskin/synthetic_character.h"
+#include "paths/action_path.h"
+
+// Counts heap allocations so a test can prove evaluate() allocates nothing.
+static std::atomic<long> gAllocations{0};
+void* operator new(std::size_t n) {
+  ++gAllocations;
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+using namespace myoskin;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+const Skeleton& arm() {
+  static const Skeleton s = makeSyntheticArm().character.skeleton;
+  return s;
+}
+
+Vec3 head(const char* bone) { return arm().bones[arm().find(bone)].head; }
+Vec3 tail(const char* bone) { return arm().bones[arm().find(bone)].tail; }
+
+// A spindle-shaped muscle from O to I, bowed by `bow` along `side`, peak semi-axis `peak`, lofted.
+Muscle spindle(const std::string& name, const Vec3& O, const std::string& ob, const Vec3& I, const std::string& ib,
+               const Vec3& side, double bow, double peak) {
+  Muscle m;
+  m.name = name;
+  m.origin = {ob, O};
+  m.insertion = {ib, I};
+  const Vec3 dir = (I - O).normalized();
+  const Vec3 sideN = (side - side.dot(dir) * dir).normalized();
+  const int n = 15;
+  for (int i = 0; i <= n; ++i) {
+    const double t = double(i) / n;
+    m.rootCurve.push_back(O + t * (I - O) + bow * std::sin(kPi * t) * sideN);
+  }
+  for (int i = 2; i <= n - 2; ++i) {
+    const double t = double(i) / n;
+    MuscleSection s;
+    s.u = -1 + 2 * t;
+    s.center = m.rootCurve[i];
+    s.normal = dir;
+    s.axisA = sideN;
+    s.a = peak * std::pow(std::sin(kPi * t), 0.8);
+    s.b = 0.75 * s.a;
+    m.sections.push_back(s);
+  }
+  m.joints = 6;
+  m.bulge = 1.0;
+  m.surface = loftMuscleSurface(m);
+  return m;
+}
+
+// Biceps-like: front (+Z) of the upper arm to the forearm just past the elbow.
+Muscle biceps() {
+  const Vec3 sh = head("upper_arm"), el = head("forearm");
+  return spindle("biceps", sh + 0.15 * (el - sh) + Vec3(0, 0, 0.02), "upper_arm",
+                 el + 0.12 * (tail("forearm") - el) + Vec3(0, 0, 0.015), "forearm", Vec3::UnitZ(), 0.02, 0.022);
+}
+
+// Triceps-like behind the elbow, wrapping round a sphere at the elbow on flexion.
+Muscle tricepsWrap(double radius = 0.03) {
+  const Vec3 sh = head("upper_arm"), el = head("forearm");
+  Muscle m = spindle("triceps", sh + 0.3 * (el - sh) + Vec3(0, 0, -0.035), "upper_arm",
+                     el + Vec3(0.04, 0, -0.034), "forearm", -Vec3::UnitZ(), 0.006, 0.02);
+  m.wrap.type = WrapType::Joint;
+  m.wrap.bone = "forearm";
+  m.wrap.radius = radius;
+  return m;
+}
+
+// A slim muscle from the upper arm's front round the forearm's cylinder (forearm twist makes it wrap).
+Muscle forearmWrap(int side = 1) {
+  const Vec3 sh = head("upper_arm"), el = head("forearm"), wr = tail("forearm");
+  Muscle m = spindle("supinator", sh + 0.6 * (el - sh) + Vec3(0, 0, 0.035), "upper_arm",
+                     el + 0.45 * (wr - el) + Vec3(0, 0, 0.03), "forearm", Vec3::UnitZ(), 0.004, 0.008);
+  m.wrap.type = WrapType::Bone;
+  m.wrap.bone = "forearm";
+  m.wrap.radius = 0.02;
+  m.wrap.side = side;
+  return m;
+}
+
+// Pose with the elbow flexed by `flex` radians (towards +Z) and the forearm twisted by `twist`.
+Pose armPose(double flex, double twist = 0.0, double shoulder = 0.0) {
+  std::vector<Eigen::Quaterniond> q(arm().numBones(), Eigen::Quaterniond::Identity());
+  q[arm().find("forearm")] = Eigen::AngleAxisd(flex, Vec3::UnitX()) * Eigen::AngleAxisd(twist, Vec3::UnitY());
+  q[arm().find("upper_arm")] = Eigen::Quaterniond(Eigen::AngleAxisd(shoulder, Vec3::UnitZ()));
+  return poseFromLocalRotations(arm(), q);
+}
+
+// A pose that moves the forearm (and hand) along the arm so a muscle across the elbow stretches.
+Pose stretchPose(double dx) {
+  Pose p = restPose(arm());
+  for (const char* b : {"forearm", "hand"}) p.matrices[arm().find(b)](0, 3) += dx;
+  return p;
+}
+
+double relDiff(const Mat4& a, const Mat4& b) { return (a - b).norm() / std::max(1.0, b.norm()); }
+
+}  // namespace
+
+// ============================================================================
+// Paths
+// ============================================================================
+
+TEST(Paths, StraightWhenLineClearsSphereAndWrapsOtherwise) {
+  paths::ActionPath p;
+  paths::jointWrapPath(Vec3(-1, 0.5, 0), Vec3(1, 0.5, 0), Vec3::Zero(), 0.3, Vec3::UnitY(), p);
+  EXPECT_FALSE(p.wrapped);
+  EXPECT_NEAR(p.length, 2.0, 1e-12);
+  paths::jointWrapPath(Vec3(-1, 0.1, 0), Vec3(1, 0.1, 0), Vec3::Zero(), 0.3, Vec3::UnitY(), p);
+  ASSERT_TRUE(p.wrapped);
+  ASSERT_EQ(p.count, 3);
+  // Tangent points on the sphere, tangent lines perpendicular to the radius, C1 at both.
+  for (int k : {0, 2}) {
+    const Vec3 T = k == 0 ? p.pieces[0].b : p.pieces[2].a;
+    EXPECT_NEAR(T.norm(), 0.3, 1e-12);
+    const Vec3 d = (p.pieces[k].b - p.pieces[k].a).normalized();
+    EXPECT_LT(std::abs(d.dot(T.normalized())), 1e-9);
+  }
+  Vec3 x, t0, t1;
+  const double s1 = p.pieces[0].length, s2 = s1 + p.pieces[1].length;
+  for (double s : {s1, s2}) {
+    paths::pointAt(p, s - 1e-9, x, t0);
+    paths::pointAt(p, s + 1e-9, x, t1);
+    EXPECT_LT((t0 - t1).norm(), 1e-6) << "tangent jump at " << s;
+  }
+  // The arc goes over the +Y side, the side asked for.
+  paths::pointAt(p, 0.5 * p.length, x, t0);
+  EXPECT_NEAR(x.y(), 0.3, 1e-9);
+  paths::jointWrapPath(Vec3(-1, 0.1, 0), Vec3(1, 0.1, 0), Vec3::Zero(), 0.3, -Vec3::UnitY(), p);
+  paths::pointAt(p, 0.5 * p.length, x, t0);
+  EXPECT_NEAR(x.y(), -0.3, 1e-9);
+}
+
+TEST(Paths, JointWrapIsShortestAmongPerturbedPaths) {
+  const Vec3 O(-0.8, 0.05, 0.1), I(0.7, -0.02, 0.05), J(0.02, 0.01, 0.0);
+  const double r = 0.25;
+  paths::ActionPath p;
+  paths::jointWrapPath(O, I, J, r, Vec3(0.1, 1, 0.2), p);
+  ASSERT_TRUE(p.wrapped);
+  const Vec3 T1 = p.pieces[0].b, T2 = p.pieces[2].a;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> nd(0.0, 1.0);
+  int valid = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const double eps = 0.05 * std::pow(10.0, -3.0 * (trial % 4) / 3.0);
+    const Vec3 Q1 = J + r * (T1 - J + eps * Vec3(nd(rng), nd(rng), nd(rng))).normalized();
+    const Vec3 Q2 = J + r * (T2 - J + eps * Vec3(nd(rng), nd(rng), nd(rng))).normalized();
+    // The straight parts must not enter the sphere.
+    auto clears = [&](const Vec3& a, const Vec3& b) {
+      const Vec3 d = b - a;
+      const double t = std::clamp((J - a).dot(d) / d.squaredNorm(), 0.0, 1.0);
+      return (a + t * d - J).norm() >= r * (1 - 1e-12);
+    };
+    if (!clears(O, Q1) || !clears(Q2, I)) continue;
+    ++valid;
+    const double arc = r * std::acos(std::clamp((Q1 - J).dot(Q2 - J) / (r * r), -1.0, 1.0));
+    EXPECT_GE((Q1 - O).norm() + arc + (I - Q2).norm(), p.length - 1e-12);
+  }
+  EXPECT_GT(valid, 100);
+}
+
+TEST(Paths, BoneWrapTangentAndShortestAndGeodesic) {
+  const Vec3 C(0, 0, 0), e1 = Vec3::UnitZ(), e2 = Vec3::UnitX(), ax = Vec3::UnitY();
+  const Vec3 O(0.0, -0.2, 0.06), I(-0.05, 0.25, -0.03);  // O at phi = 0, I round the back
+  const double r = 0.03;
+  paths::ActionPath p;
+  paths::boneWrapPath(O, I, C, e1, e2, ax, r, 1, p);
+  ASSERT_TRUE(p.wrapped);
+  // Tangent continuity at both tangent points and on the cylinder.
+  const double s1 = p.pieces[0].length, s2 = s1 + p.pieces[1].length;
+  Vec3 x0, x1, t0, t1;
+  for (double s : {s1, s2}) {
+    paths::pointAt(p, s - 1e-10, x0, t0);
+    paths::pointAt(p, s + 1e-10, x1, t1);
+    EXPECT_LT((t0 - t1).norm(), 1e-6);
+    const Vec3 d = x1 - C;
+    EXPECT_NEAR((d - d.dot(ax) * ax).norm(), r, 1e-8);
+  }
+  // Shortest among perturbed (phi1, h1, phi2, h2) with a geodesic helix between.
+  auto cyl = [&](double phi, double h) { return C + r * (std::cos(phi) * e1 + std::sin(phi) * e2) + h * ax; };
+  auto coords = [&](const Vec3& q, double& phi, double& h) {
+    const Vec3 d = q - C;
+    h = d.dot(ax);
+    phi = std::atan2(d.dot(e2), d.dot(e1));
+  };
+  double phi1, h1, phi2, h2;
+  coords(p.pieces[0].b, phi1, h1);
+  coords(p.pieces[2].a, phi2, h2);
+  double dphi = phi2 - phi1;
+  while (dphi < 0) dphi += 2 * kPi;
+  auto clears = [&](const Vec3& a, const Vec3& b) {
+    for (int k = 0; k <= 200; ++k) {
+      const Vec3 q = a + (k / 200.0) * (b - a) - C;
+      if ((q - q.dot(ax) * ax).norm() < r * (1 - 1e-9)) return false;
+    }
+    return true;
+  };
+  std::mt19937 rng(3);
+  std::normal_distribution<double> nd(0.0, 1.0);
+  int valid = 0;
+  for (int trial = 0; trial < 1500; ++trial) {
+    const double eps = 0.05 * std::pow(10.0, -2.0 * (trial % 3) / 2.0);
+    const double a1 = phi1 + eps * nd(rng), b1 = h1 + 0.03 * eps * nd(rng);
+    const double a2 = a1 + dphi + eps * nd(rng), b2 = h2 + 0.03 * eps * nd(rng);
+    if (a2 < a1) continue;
+    const Vec3 Q1 = cyl(a1, b1), Q2 = cyl(a2, b2);
+    if (!clears(O, Q1) || !clears(Q2, I)) continue;
+    ++valid;
+    const double helix = std::hypot(r * (a2 - a1), b2 - b1);
+    EXPECT_GE((Q1 - O).norm() + helix + (I - Q2).norm(), p.length - 1e-12);
+  }
+  EXPECT_GT(valid, 100);
+  // The other side goes round the other way and is a different (here longer) path.
+  paths::ActionPath q;
+  paths::boneWrapPath(O, I, C, e1, e2, ax, r, -1, q);
+  EXPECT_TRUE(q.wrapped);
+  EXPECT_GT(std::abs(q.length - p.length), 1e-4);
+  // No wrap needed: straight.
+  paths::boneWrapPath(O, Vec3(0.01, 0.25, 0.06), C, e1, e2, ax, r, 1, q);
+  EXPECT_FALSE(q.wrapped);
+}
+
+TEST(Paths, HelixFrameIsRotationMinimising) {
+  // Compare the closed-form frame with a fine discrete parallel transport (double reflection).
+  paths::ActionPath p;
+  paths::boneWrapPath(Vec3(0, -0.2, 0.06), Vec3(-0.05, 0.25, -0.03), Vec3::Zero(), Vec3::UnitZ(), Vec3::UnitX(),
+                      Vec3::UnitY(), 0.03, 1, p);
+  Vec3 x, t;
+  paths::pointAt(p, 0, x, t);
+  Mat3 F0;
+  F0.col(1) = t;
+  F0.col(0) = t.unitOrthogonal();
+  F0.col(2) = F0.col(0).cross(t);
+  const int n = 20000;
+  Vec3 r = F0.col(0), xPrev = x, tPrev = t;
+  for (int k = 1; k <= n; ++k) {
+    Vec3 xk, tk;
+    paths::pointAt(p, p.length * k / n, xk, tk);
+    const Vec3 v1 = xk - xPrev;
+    const double c1 = v1.squaredNorm();
+    if (c1 > 1e-30) {
+      const Vec3 rL = r - (2 / c1) * v1.dot(r) * v1, tL = tPrev - (2 / c1) * v1.dot(tPrev) * v1;
+      const Vec3 v2 = tk - tL;
+      const double c2 = v2.squaredNorm();
+      r = c2 > 1e-30 ? Vec3(rL - (2 / c2) * v2.dot(rL) * v2) : rL;
+    }
+    xPrev = xk, tPrev = tk;
+  }
+  const Mat3 F = paths::frameAt(p, F0, p.length);
+  EXPECT_LT((F.col(0) - r.normalized()).norm(), 1e-5);
+  EXPECT_LT((F.col(1) - tPrev).norm(), 1e-9);
+}
+
+// ============================================================================
+// The rig
+// ============================================================================
+
+TEST(MuscleRig, RestPoseGivesBindMatricesAndRestSurfaces) {
+  const std::vector<Muscle> ms{biceps(), tricepsWrap(), forearmWrap()};
+  const MuscleRig rig(arm(), ms);
+  ASSERT_EQ(rig.numMuscles(), 3);
+  ASSERT_EQ(rig.numJoints(), 18);
+  EXPECT_EQ(rig.jointNames()[0], "biceps.j0");
+  EXPECT_EQ(rig.jointNames()[17], "supinator.j5");
+  EXPECT_EQ(rig.jointParentBone()[0], arm().find("upper_arm"));
+  MuscleRigState st = rig.makeState();
+  rig.evaluate(restPose(arm()), st, true);
+  for (int j = 0; j < rig.numJoints(); ++j) {
+    EXPECT_LT(relDiff(st.jointMatrices[j], rig.bindMatrices()[j]), 1e-9) << rig.jointNames()[j];
+    const Mat3 R = rig.bindMatrices()[j].topLeftCorner<3, 3>();
+    EXPECT_LT((R.transpose() * R - Mat3::Identity()).norm(), 1e-12);
+    EXPECT_NEAR(R.determinant(), 1.0, 1e-12);
+  }
+  for (int m = 0; m < 3; ++m) {
+    EXPECT_NEAR(st.stretch[m], 1.0, 1e-12);
+    EXPECT_LT((st.surfaces[m] - rig.restSurface(m).vertices).cwiseAbs().maxCoeff(), 1e-12);
+  }
+  // Joints lie inside the muscle, on its root curve, ordered origin -> insertion.
+  const Vec3 O = ms[0].origin.position, I = ms[0].insertion.position;
+  double prev = -1;
+  for (int k = 0; k < 6; ++k) {
+    const Vec3 c = rig.bindMatrices()[k].topRightCorner<3, 1>();
+    const double t = (c - O).dot(I - O) / (I - O).squaredNorm();
+    EXPECT_GT(t, prev);
+    prev = t;
+    EXPECT_GT(c.z() - (O.z() + t * (I.z() - O.z())), 0.0);  // bowed to the front like the root curve
+  }
+}
+
+TEST(MuscleRig, StraightPathFramesFollowAndDoNotSpin) {
+  const MuscleRig rig(arm(), {biceps()});
+  MuscleRigState st = rig.makeState();
+  const Mat4 bind0 = rig.bindMatrices()[0];
+  Vec3 prevX = bind0.col(0).head<3>();
+  double prevLen = rig.restLengths()[0];
+  for (int deg = 0; deg <= 150; ++deg) {
+    rig.evaluate(armPose(deg * kPi / 180), st);
+    const double lambda = st.stretch[0];
+    for (int k = 0; k < 6; ++k) {
+      const Mat4& J = st.jointMatrices[k];
+      // Scale along Y is the stretch; X and Z share one scale.
+      EXPECT_NEAR(J.col(1).head<3>().norm(), lambda, 1e-12);
+      EXPECT_NEAR(J.col(0).head<3>().norm(), J.col(2).head<3>().norm(), 1e-12);
+    }
+    const Vec3 X = st.jointMatrices[0].col(0).head<3>().normalized();
+    EXPECT_LT(std::acos(std::clamp(X.dot(prevX), -1.0, 1.0)), 2.0 * kPi / 180) << "frame jumped at " << deg;
+    EXPECT_LT(std::abs(st.length[0] - prevLen), 0.01) << "length jumped at " << deg;
+    prevX = X;
+    prevLen = st.length[0];
+  }
+  EXPECT_LT(st.stretch[0], 0.8);  // the biceps shortens on flexion
+  // Joint axes run along the straight path from origin to insertion.
+  rig.evaluate(armPose(1.0), st);
+  const Pose pose = armPose(1.0);
+  const Muscle& mu = rig.muscles()[0];
+  auto posed = [&](const MuscleAttachment& a) {
+    const int b = arm().find(a.bone);
+    const Mat4 M = pose.matrices[b] * arm().bones[b].rest.inverse();
+    return Vec3((M * a.position.homogeneous()).head<3>());
+  };
+  const Vec3 dir = (posed(mu.insertion) - posed(mu.origin)).normalized();
+  EXPECT_LT((st.jointMatrices[3].col(1).head<3>().normalized() - dir).norm(), 1e-9);
+  EXPECT_NEAR(st.length[0], (posed(mu.insertion) - posed(mu.origin)).norm(), 1e-12);
+  // The frame is anchored to the origin bone: twisting the upper arm about its axis turns it with the bone.
+  rig.evaluate(armPose(0.0, 0.0, 0.0), st);
+  std::vector<Eigen::Quaterniond> q(arm().numBones(), Eigen::Quaterniond::Identity());
+  q[arm().find("upper_arm")] = Eigen::AngleAxisd(0.3, Vec3::UnitY());
+  MuscleRigState tw = rig.makeState();
+  rig.evaluate(poseFromLocalRotations(arm(), q), tw);
+  const Mat3 Rb = Eigen::AngleAxisd(0.3, Vec3::UnitX()).toRotationMatrix();  // bone Y = world +X
+  EXPECT_LT((tw.jointMatrices[2].topLeftCorner<3, 3>() - Rb * st.jointMatrices[2].topLeftCorner<3, 3>()).norm(), 1e-9);
+}
+
+TEST(MuscleRig, JointWrapBeginsAndEndsContinuously) {
+  const MuscleRig rig(arm(), {tricepsWrap()});
+  MuscleRigState st = rig.makeState();
+  rig.evaluate(armPose(0), st);
+  ASSERT_FALSE(st.wrapped[0]) << "the triceps runs straight with the arm extended";
+  int transitions = 0;
+  bool wasWrapped = false;
+  double prevLen = st.length[0];
+  std::vector<Mat4> prev = st.jointMatrices;
+  const double step = 0.1 * kPi / 180;
+  for (int k = 0; k <= 1500; ++k) {
+    rig.evaluate(armPose(k * step), st);
+    if (bool(st.wrapped[0]) != wasWrapped) ++transitions, wasWrapped = st.wrapped[0];
+    // A step of 0.1 degree moves points on a 0.3 m arm by ~0.5 mm; allow 1 mm.
+    EXPECT_LT(std::abs(st.length[0] - prevLen), 1e-3) << "at step " << k;
+    for (int j = 0; j < rig.numJoints(); ++j) {
+      EXPECT_LT((st.jointMatrices[j].col(3) - prev[j].col(3)).norm(), 1e-3) << "joint " << j << " step " << k;
+      EXPECT_LT((st.jointMatrices[j].col(1) - prev[j].col(1)).norm(), 0.01) << "joint " << j << " step " << k;
+    }
+    prevLen = st.length[0];
+    prev = st.jointMatrices;
+  }
+  EXPECT_TRUE(wasWrapped) << "the triceps wraps round the elbow at 150 degrees";
+  EXPECT_GE(transitions, 1);
+  // Wrapped: every joint stays outside the sphere (less the muscle's own offset) and stretch > 1.
+  rig.evaluate(armPose(2.4), st);
+  EXPECT_GT(st.stretch[0], 1.0);
+}
+
+TEST(MuscleRig, BoneWrapFollowsTwistBothSides) {
+  for (int side : {1, -1}) {
+    const MuscleRig rig(arm(), {forearmWrap(side)});
+    MuscleRigState st = rig.makeState();
+    double prevLen = rig.restLengths()[0];
+    std::vector<Mat4> prev = rig.bindMatrices();
+    bool wrapped = false;
+    int transitions = 0;
+    for (int k = 0; k <= 600; ++k) {
+      rig.evaluate(armPose(0.0, side * k * 0.25 * kPi / 180), st);
+      if (bool(st.wrapped[0]) != wrapped) ++transitions, wrapped = st.wrapped[0];
+      EXPECT_LT(std::abs(st.length[0] - prevLen), 1e-3) << "side " << side << " step " << k;
+      prevLen = st.length[0];
+      for (int j = 0; j < rig.numJoints(); ++j) {
+        ASSERT_TRUE(st.jointMatrices[j].allFinite());
+        // A 0.25 degree twist moves points 3 cm from the axis by 0.13 mm; frames turn by about as much.
+        EXPECT_LT((st.jointMatrices[j].col(3) - prev[j].col(3)).norm(), 1e-3) << "joint " << j << " step " << k;
+        EXPECT_LT((st.jointMatrices[j].topLeftCorner<3, 3>() - prev[j].topLeftCorner<3, 3>()).norm(), 0.02)
+            << "joint " << j << " step " << k;
+      }
+      prev = st.jointMatrices;
+    }
+    EXPECT_EQ(transitions, 1) << "side " << side << ": the wrap starts once and stays";
+    EXPECT_TRUE(wrapped) << "side " << side << ": a 150 degree twist wraps the muscle round the forearm";
+    // Wrapped joints sit outside the cylinder, less the muscle's 4 mm bow off its path (a straight line
+    // would pass within a few millimetres of the axis).
+    const Mat4 fa = armPose(0.0, side * 150 * kPi / 180).matrices[arm().find("forearm")];
+    const Vec3 ax = fa.block<3, 1>(0, 1).normalized(), c = fa.block<3, 1>(0, 3);
+    for (int j = 0; j < rig.numJoints(); ++j) {
+      const Vec3 d = st.jointMatrices[j].block<3, 1>(0, 3) - c;
+      if (d.dot(ax) > 0) EXPECT_GT((d - d.dot(ax) * ax).norm(), 0.02 - 0.004) << "joint " << j;
+    }
+  }
+}
+
+TEST(MuscleRig, VolumeConstantOverStretchForEveryBulgeFactor) {
+  for (double k : {0.0, 1.0, 3.0}) {
+    Muscle mu = biceps();
+    mu.bulge = k;
+    const MuscleRig rig(arm(), {mu});
+    MuscleRigState st = rig.makeState();
+    const double v0 = enclosedVolume(rig.restSurface(0).vertices, rig.restSurface(0).triangles);
+    const double L0 = rig.restLengths()[0];
+    double worst = 0;
+    for (double lambda : {0.6, 0.7, 0.8, 0.9, 1.1, 1.25, 1.4, 1.5}) {
+      // The biceps is nearly parallel to the arm: move the forearm along X until the stretch is reached.
+      double dx = (lambda - 1) * L0;
+      for (int it = 0; it < 30; ++it) {
+        rig.evaluate(stretchPose(dx), st);
+        dx += (lambda - st.stretch[0]) * L0;
+      }
+      rig.evaluate(stretchPose(dx), st, true);
+      ASSERT_NEAR(st.stretch[0], lambda, 1e-6);
+      const double v = enclosedVolume(st.surfaces[0], rig.restSurface(0).triangles);
+      worst = std::max(worst, std::abs(v / v0 - 1));
+    }
+    std::printf("bulge k=%.0f: worst volume change over stretch 0.6-1.5 = %.4f %%\n", k, 100 * worst);
+    EXPECT_LT(worst, 0.005) << "k = " << k;
+  }
+}
+
+TEST(MuscleRig, BulgeFactorConcentratesChangeInTheBelly) {
+  // Contracted to 0.7: with k = 0 every joint scales by 0.7^-1/2; with k = 3 the belly more, the ends less.
+  auto scales = [](double k) {
+    Muscle mu = biceps();
+    mu.bulge = k;
+    mu.joints = 8;
+    const MuscleRig rig(arm(), {mu});
+    MuscleRigState st = rig.makeState();
+    const double L0 = rig.restLengths()[0];
+    double dx = -0.3 * L0;
+    for (int it = 0; it < 30; ++it) rig.evaluate(stretchPose(dx), st), dx += (0.7 - st.stretch[0]) * L0;
+    std::vector<double> s;
+    for (const Mat4& J : st.jointMatrices) s.push_back(J.col(0).head<3>().norm());
+    return s;
+  };
+  const auto uniform = scales(0.0), belly = scales(3.0);
+  for (double s : uniform) EXPECT_NEAR(s, 1 / std::sqrt(0.7), 1e-6);
+  EXPECT_GT(belly[4], uniform[4] + 0.02);
+  EXPECT_LT(belly[0], uniform[0] - 0.02);
+  EXPECT_LT(belly[7], uniform[7] - 0.02);
+}
+
+TEST(MuscleRig, EvaluateAllocatesNothingAndIsDeterministic) {
+  const MuscleRig rig(arm(), {biceps(), tricepsWrap(), forearmWrap()});
+  MuscleRigState a = rig.makeState(), b = rig.makeState();
+  const Pose pose = armPose(2.0, 0.8);
+  rig.evaluate(pose, a, true);
+  const long before = gAllocations.load();
+  rig.evaluate(pose, b, true);
+  EXPECT_EQ(gAllocations.load() - before, 0);
+  for (int j = 0; j < rig.numJoints(); ++j) EXPECT_EQ(a.jointMatrices[j], b.jointMatrices[j]);
+  for (int m = 0; m < 3; ++m) EXPECT_EQ(a.surfaces[m], b.surfaces[m]);
+}
+
+// ============================================================================
+// Bad input
+// ============================================================================
+
+TEST(MuscleRig, BadInputIsRejectedClearly) {
+  auto expectError = [](const Muscle& m, const char* needle) {
+    try {
+      MuscleRig rig(arm(), {m});
+      ADD_FAILURE() << "no error for " << needle;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  Muscle same = biceps();
+  same.insertion.position = same.origin.position;
+  expectError(same, "coincide");
+  Muscle zero = tricepsWrap();
+  zero.wrap.radius = 0.0;
+  expectError(zero, "radius");
+  expectError(tricepsWrap(0.08), "inside the joint sphere");
+  Muscle cyl = forearmWrap();
+  cyl.wrap.radius = 0.1;
+  expectError(cyl, "inside the cylinder");
+  Muscle bone = biceps();
+  bone.origin.bone = "tibia";
+  expectError(bone, "'tibia' is not in the skeleton");
+  Muscle many = biceps();
+  many.joints = 500;
+  expectError(many, "joints must be in");
+
+  const MuscleRig rig(arm(), {biceps(), tricepsWrap()});
+  MuscleRigState st = rig.makeState();
+  Pose nan = restPose(arm());
+  nan.matrices[1](0, 3) = NAN;
+  EXPECT_THROW(rig.evaluate(nan, st), InputError);
+  Pose shortPose = restPose(arm());
+  shortPose.matrices.pop_back();
+  EXPECT_THROW(rig.evaluate(shortPose, st), InputError);
+  MuscleRigState wrong;
+  EXPECT_THROW(rig.evaluate(restPose(arm()), wrong), InputError);
+}
+
+TEST(MuscleRig, DegeneratePosesStayFinite) {
+  // Insertion dragged onto the origin, and into the joint sphere: documented fallbacks, no NaN.
+  const MuscleRig rig(arm(), {biceps(), tricepsWrap()});
+  MuscleRigState st = rig.makeState();
+  const Muscle& mu = rig.muscles()[0];
+  Pose p = restPose(arm());
+  const int fa = arm().find("forearm");
+  p.matrices[fa].topRightCorner<3, 1>() += mu.origin.position - mu.insertion.position;
+  p.matrices[arm().find("hand")].topRightCorner<3, 1>() += mu.origin.position - mu.insertion.position;
+  rig.evaluate(p, st, true);
+  for (const Mat4& J : st.jointMatrices) EXPECT_TRUE(J.allFinite());
+  for (const Points& s : st.surfaces) EXPECT_TRUE(s.allFinite());
+  Pose q = restPose(arm());
+  q.matrices[fa].topRightCorner<3, 1>() -= Vec3(0.03, 0, -0.03);
+  rig.evaluate(q, st, true);
+  for (const Mat4& J : st.jointMatrices) EXPECT_TRUE(J.allFinite());
+}

@@ -1,0 +1,114 @@
+"""Muscle deformation through _core: MuscleRig on muscles extracted from the synthetic arm."""
+import math
+
+import numpy as np
+import pytest
+
+from conftest import MUSCULAR, shared
+
+
+@pytest.fixture(scope="module")
+def arm_rig(core):
+    character, _ = core.make_synthetic_arm(seed=1)
+    muscles, _ = core.extract_muscles(character)
+    assert muscles, "the default arm has muscles to rig"
+    return character, muscles, core.MuscleRig(character, muscles)
+
+
+def quat(axis, angle):
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    return [math.cos(angle / 2), *(math.sin(angle / 2) * axis)]
+
+
+def elbow_pose(core, character, angle):
+    q = np.tile([1.0, 0, 0, 0], (character.num_bones, 1))
+    q[character.bone_names.index("forearm")] = quat([1, 0, 0], angle)
+    return core.pose_from_rotations(character, q)
+
+
+def test_rest_pose_gives_bind_matrices_and_rest_surfaces(core, arm_rig):
+    character, muscles, rig = arm_rig
+    assert rig.num_muscles == len(muscles)
+    assert rig.num_joints == sum(m.joints for m in muscles) == len(rig.joint_names)
+    out = rig.evaluate(core.rest_pose(character), with_surfaces=True)
+    bind = rig.bind_matrices
+    assert out["joint_matrices"].shape == (rig.num_joints, 4, 4)
+    np.testing.assert_allclose(out["joint_matrices"], bind, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(out["stretch"], 1.0, atol=1e-12)
+    for i, s in enumerate(out["surfaces"]):
+        np.testing.assert_allclose(s, rig.rest_surface(i)[0], atol=1e-12)
+    # Bind matrices are rigid, joints are parented to their muscle's origin bone.
+    r = bind[:, :3, :3]
+    np.testing.assert_allclose(np.einsum("nji,njk->nik", r, r), np.tile(np.eye(3), (len(r), 1, 1)), atol=1e-12)
+    for j, name in enumerate(rig.joint_names):
+        mu = muscles[rig.joint_muscle[j]]
+        assert name.startswith(mu.name + ".j")
+        assert character.bone_names[rig.joint_parent_bone[j]] == mu.origin_bone
+
+
+def test_flexion_shortens_and_bulges_muscles_across_the_elbow(core, arm_rig):
+    character, muscles, rig = arm_rig
+    out = rig.evaluate(elbow_pose(core, character, math.radians(120)), with_surfaces=True)
+    crossing = [i for i, m in enumerate(muscles) if m.origin_bone != m.insertion_bone]
+    assert crossing, "some extracted muscle spans the elbow"
+    for i in crossing:
+        if out["stretch"][i] < 0.95:
+            j = rig.joint_offset(i) + rig.joint_count(i) // 2
+            s = np.linalg.norm(out["joint_matrices"][j][:3, 0])
+            assert s > 1.0, "a shortened muscle thickens"
+        v, t = out["surfaces"][i], rig.rest_surface(i)[1]
+        assert np.isfinite(v).all() and v.shape == rig.rest_surface(i)[0].shape
+
+
+def test_wrap_settings_and_bad_input(core, arm_rig):
+    character, muscles, _ = arm_rig
+    m = muscles[0]
+    m.wrap_type, m.wrap_bone, m.wrap_radius = "joint", "forearm", 1e-4
+    rig = core.MuscleRig(character, [m], joints_override=3)
+    assert rig.num_joints == 3
+    m.wrap_radius = 0.0
+    with pytest.raises(ValueError, match="radius"):
+        core.MuscleRig(character, [m])
+    m.wrap_type = "none"
+    m.origin_bone = "no_such_bone"
+    with pytest.raises(ValueError, match="no_such_bone"):
+        core.MuscleRig(character, [m])
+    rig = core.MuscleRig(character, muscles[1:])
+    with pytest.raises(ValueError, match="4 by 4"):
+        rig.evaluate(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="bones"):
+        rig.evaluate(np.tile(np.eye(4), (character.num_bones + 1, 1, 1)))
+    bad = core.rest_pose(character)
+    bad[1, 0, 3] = np.nan
+    with pytest.raises(ValueError, match="not finite"):
+        rig.evaluate(bad)
+    with pytest.raises(ValueError, match="quaternion"):
+        core.pose_from_rotations(character, np.zeros((character.num_bones, 4)))
+
+
+def test_makehuman_muscles_rig_and_follow_a_pose(core):
+    character = core.load_character(shared(MUSCULAR))
+    muscles, _ = core.extract_muscles(character)
+    rig = core.MuscleRig(character, muscles)
+    rest = rig.evaluate(core.rest_pose(character))["joint_matrices"]
+    np.testing.assert_allclose(rest, rig.bind_matrices, atol=1e-9)
+    q = np.tile([1.0, 0, 0, 0], (character.num_bones, 1))
+    for name in character.bone_names:
+        if "lowerarm" in name or "forearm" in name or "lowerleg" in name or "shin" in name:
+            q[character.bone_names.index(name)] = quat([1, 0, 0], 0.8)
+    out = rig.evaluate(core.pose_from_rotations(character, q))
+    assert np.isfinite(out["joint_matrices"]).all()
+    print(f"makehuman_muscular_male: {rig.num_muscles} muscles, {rig.num_joints} joints, "
+          f"stretch range {out['stretch'].min():.3f}-{out['stretch'].max():.3f}")
+
+
+def test_results_are_copies_and_deterministic(core, arm_rig):
+    character, _, rig = arm_rig
+    a = rig.evaluate(elbow_pose(core, character, 1.0), with_surfaces=True)
+    keep = a["joint_matrices"].copy(), a["surfaces"][0].copy()
+    b = rig.evaluate(elbow_pose(core, character, 2.0), with_surfaces=True)
+    np.testing.assert_array_equal(a["joint_matrices"], keep[0])
+    np.testing.assert_array_equal(a["surfaces"][0], keep[1])
+    assert not np.allclose(b["joint_matrices"], a["joint_matrices"])
+    c = rig.evaluate(elbow_pose(core, character, 1.0), with_surfaces=True)
+    np.testing.assert_array_equal(c["joint_matrices"], keep[0])
