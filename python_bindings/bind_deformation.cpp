@@ -9,18 +9,6 @@
 
 namespace myoskin::python {
 
-namespace {
-
-// The rig plus its evaluation state, reused across evaluate() calls (no per-frame allocation in the core);
-// the mutex serialises callers, since evaluate runs without the GIL.
-struct PyMuscleRig : MuscleRig {
-  using MuscleRig::MuscleRig;
-  MuscleRigState state = makeState();
-  std::mutex mutex;
-};
-
-}  // namespace
-
 void bindDeformation(py::module_& m) {
   py::class_<PyMuscleRig>(m, "MuscleRig",
                         "Muscles on a skeleton: built once, then evaluate(pose) gives every muscle joint's matrix "

@@ -149,6 +149,57 @@ void bindSkinning(py::module_& m) {
       py::arg("character"), py::arg("pose_matrices"),
       "#B by 4 by 4 skinning transforms pose_i * rest_i^-1 (plain LBS) for #B by 4 by 4 posed matrices.");
 
+  m.def(
+      "skinning_transforms",
+      [](const Character& c, const DoubleArray& poseMatrices, const PyMuscleRig& rig, const DoubleArray& jointMatrices) {
+        const Pose pose = poseFromArray(poseMatrices, c.skeleton.numBones());
+        MuscleRigState state = rig.makeState();
+        state.jointMatrices = matricesFromArray(jointMatrices, "joint_matrices");
+        std::vector<Mat4> t;
+        skinningTransforms(c.skeleton, pose, rig, state, t);
+        return matricesToArray(t);
+      },
+      py::arg("character"), py::arg("pose_matrices"), py::arg("rig"), py::arg("joint_matrices"),
+      "#B + #J combined skinning transforms: pose_i * rest_i^-1 for the bones, then joint_j * bind_j^-1 for "
+      "the muscle joints (joint_matrices from rig.evaluate(pose_matrices)).");
+
+  // ==========================================================================
+  // Hybrid weights
+  // ==========================================================================
+  m.def(
+      "hybrid_weights",
+      [](const Character& c, const PyMuscleRig& rig, double dominance, const std::map<std::string, double>& perMuscle,
+         int maxInfluences, double fullDistance, double falloffDistance, int smoothingIterations, double endTaper) {
+        if (!c.hasWeights()) throw InputError("hybrid_weights: character '" + c.name + "' has no skin weights");
+        if (rig.skeleton().numBones() != c.skeleton.numBones())
+          throw InputError("hybrid_weights: the rig has " + std::to_string(rig.skeleton().numBones()) +
+                           " bones, the character " + std::to_string(c.skeleton.numBones()));
+        HybridWeightOptions o;
+        o.dominance = dominance;
+        o.muscleDominance = perMuscle;
+        o.maxInfluences = maxInfluences;
+        o.fullDistance = fullDistance;
+        o.falloffDistance = falloffDistance;
+        o.smoothingIterations = smoothingIterations;
+        o.endTaper = endTaper;
+        SkinWeights w;
+        {
+          py::gil_scoped_release release;
+          w = computeHybridWeights(c.mesh, c.weights, rig, o);
+        }
+        return py::make_tuple(w.joints, w.weights);
+      },
+      py::arg("character"), py::arg("rig"), py::arg("dominance") = HybridWeightOptions{}.dominance,
+      py::arg("muscle_dominance") = std::map<std::string, double>{},
+      py::arg("max_influences") = HybridWeightOptions{}.maxInfluences,
+      py::arg("full_distance") = HybridWeightOptions{}.fullDistance,
+      py::arg("falloff_distance") = HybridWeightOptions{}.falloffDistance,
+      py::arg("smoothing_iterations") = HybridWeightOptions{}.smoothingIterations,
+      py::arg("end_taper") = HybridWeightOptions{}.endTaper,
+      "Combined weights (joints #V by K over [0, #B + #J), weights #V by K; rows sum to 1) from the "
+      "character's skeleton weights and the rig's muscles: distance to each muscle's surface and side, "
+      "smoothed, split between neighbouring muscle joints; dominance 0 gives the skeleton weights.");
+
   // ==========================================================================
   // Quality measures
   // ==========================================================================

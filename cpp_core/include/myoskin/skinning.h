@@ -37,7 +37,10 @@ struct HybridWeightOptions {
   // falloffDistance * r (so smooth skin away from every muscle gets none).
   double fullDistance = 0.35;
   double falloffDistance = 1.5;
-  int smoothingIterations = 4;   // Laplacian smoothing passes of each muscle's weight over the skin
+  int smoothingIterations = 24;  // Laplacian smoothing passes (one edge ring each) of each muscle's weight
+  // Fraction of the muscle's rest action path (origin -> insertion) at each end over which its weight
+  // fades to 0, so the skin over the tendons and attachments follows the bones (0 = no fade).
+  double endTaper = 0.3;
 };
 
 // Combined weights (#V by maxInfluences over combined joints [0, #B + #J)) from the skeleton weights

@@ -78,6 +78,7 @@ void checkOptions(const HybridWeightOptions& o, const MuscleRig& rig) {
   if (!(o.fullDistance >= 0.0 && o.falloffDistance > o.fullDistance) || !std::isfinite(o.falloffDistance))
     throw InputError("hybrid weights: need 0 <= fullDistance < falloffDistance");
   if (o.smoothingIterations < 0) throw InputError("hybrid weights: smoothingIterations must be >= 0");
+  if (!(o.endTaper >= 0.0 && o.endTaper <= 0.5)) throw InputError("hybrid weights: endTaper must be in [0, 0.5]");
 }
 
 }  // namespace
@@ -111,6 +112,8 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
     for (const MuscleSection& s : muscle.sections) radius += std::sqrt(std::max(s.a, 0.0) * std::max(s.b, 0.0));
     radius /= static_cast<double>(muscle.sections.size());
     const double d0 = options.fullDistance * radius, d1 = options.falloffDistance * radius;
+    const Vec3 origin = muscle.origin.position, path = muscle.insertion.position - muscle.origin.position;
+    const double pathLength2 = path.squaredNorm();
     Vec3 lo, hi;
     boundingBox(surface.vertices, lo, hi);
     lo.array() -= d1;
@@ -144,7 +147,14 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
         const Vec3 away = p - surface.vertices.row(q).transpose();
         const double cosine = d > 1e-9 ? away.dot(normals.row(near[i]).transpose()) / d : 1.0;
         const double side = std::clamp(2.0 * cosine, 0.0, 1.0);
-        value[i] = dominance * f * side;
+        // Fade towards the attachments along the rest action path.
+        double taper = 1.0;
+        if (options.endTaper > 0.0 && pathLength2 > 0.0) {
+          const double u = std::clamp((p - origin).dot(path) / pathLength2, 0.0, 1.0);
+          const double e = std::min(u, 1.0 - u) / options.endTaper;
+          taper = e >= 1.0 ? 1.0 : e * e * (3.0 - 2.0 * e);
+        }
+        value[i] = dominance * f * side * taper;
       }
     });
     std::vector<double> smoothed(value.size());
