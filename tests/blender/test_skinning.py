@@ -214,6 +214,76 @@ def test_blender_equals_core_on_makehuman_with_scaled_joints():
     check_extra_joint_rig(arm_obj, mesh_obj, character, poses)
 
 
+def check_muscle_rig(arm_obj, mesh_obj, character, muscles, poses):
+    """The hybrid rig (extracted muscles, MuscleRig, hybrid weights) built in Blender with rig_io equals the
+    core in every pose; returns the largest relative error and the largest |s - lambda| of a joint."""
+    rig = core().MuscleRig(character, muscles)
+    joints, weights = core().hybrid_weights(character, rig)
+    skeleton_names = list(character.bone_names)
+    joint_names = list(rig.joint_names)
+    assert rig_io.create_rig_bones(arm_obj, rig, skeleton_names) == joint_names
+    assert set(rig_io.muscle_bone_names(arm_obj)) == set(joint_names)
+    bones = arm_obj.data.bones
+    parent_index = np.asarray(rig.joint_parent_bone)
+    for n, p in zip(joint_names, parent_index):
+        assert bones[n].parent.name == skeleton_names[p] and bones[n].use_deform
+    combined = skeleton_names + joint_names
+    rig_io.write_combined_weights(mesh_obj, combined, joints, weights)
+    back_joints, back_weights = rig_io.read_combined_weights(mesh_obj, combined)
+    dense = np.zeros((len(joints), len(combined)))
+    back = np.zeros_like(dense)
+    rows = np.arange(len(joints))[:, None]
+    np.add.at(dense, (np.broadcast_to(rows, joints.shape)[joints >= 0], joints[joints >= 0]), weights[joints >= 0])
+    np.add.at(back, (np.broadcast_to(rows, back_joints.shape)[back_joints >= 0], back_joints[back_joints >= 0]),
+              back_weights[back_joints >= 0])
+    assert np.abs(dense - back).max() < 1e-6  # vertex groups hold the combined weights (float32)
+    errors, anisotropy = [], 0.0
+    for rotations in poses:
+        set_pose(arm_obj, rotations)
+        pose = rig_io.pose_bone_matrices(arm_obj, skeleton_names)
+        matrices = rig.evaluate(pose)["joint_matrices"]
+        scale = np.linalg.norm(matrices[:, :3, :3], axis=1)  # column norms: (s, lambda, s)
+        anisotropy = max(anisotropy, float(np.abs(scale[:, 0] - scale[:, 1]).max()))
+        rig_io.write_joint_matrices(arm_obj, joint_names, matrices, {n: pose[i] for i, n in enumerate(skeleton_names)})
+        bpy.context.view_layer.update()
+        assert np.abs(rig_io.pose_bone_matrices(arm_obj, joint_names) - matrices).max() < 1e-5
+        transforms = core().skinning_transforms(character, pose, rig, matrices)
+        expected = core().Skinner(character.vertices, joints, weights, len(combined)).deform(transforms)
+        got = blender_io.evaluated_vertices(mesh_obj, arm_obj)
+        assert np.abs(expected - np.asarray(character.vertices)).max() > 1e-3, "the pose should move the skin"
+        errors.append(float(np.abs(got - expected).max()) / extent(character))
+    print(f"  {rig.num_muscles} muscles, {rig.num_joints} joints as bones, {len(poses)} poses: max relative "
+          f"error {max(errors):.2e}, largest |s - lambda| of a joint {anisotropy:.3f}")
+    assert max(errors) < TOLERANCE, errors
+    assert anisotropy > 0.05, "some pose should scale a muscle joint non-uniformly"
+    return max(errors), anisotropy
+
+
+def test_blender_equals_core_with_the_muscle_rig_on_the_arm():
+    arm_obj, mesh_obj, character = synthetic_arm_in_blender()
+    muscles, _report = core().extract_muscles(character)
+    assert len(muscles) >= 3
+    check_muscle_rig(arm_obj, mesh_obj, character, muscles, [
+        {"forearm": axis_angle((1, 0, 0), 70)},
+        {"forearm": axis_angle((1, 0, 0), 140)},
+        {"forearm": axis_angle((1, 0, 0), 100), "upper_arm": axis_angle((0, 0, 1), 40),
+         "hand": axis_angle((1, 0, 0), -30)},
+    ])
+
+
+def test_blender_equals_core_with_the_muscle_rig_on_makehuman():
+    arm_obj, mesh_obj, character = makehuman_in_blender()
+    muscles, _report = core().extract_muscles(character)
+    assert len(muscles) >= 5, len(muscles)
+    names = list(character.bone_names)
+    spanned = sorted({m.insertion_bone for m in muscles if m.insertion_bone != m.origin_bone} |
+                     {m.origin_bone for m in muscles})
+    rng = np.random.default_rng(7)
+    poses = [{n: axis_angle(rng.normal(size=3), rng.uniform(20, 70)) for n in spanned[i::2]} for i in range(2)]
+    poses.append({n: axis_angle((1, 0, 0), 60) for n in names if "lowerarm" in n.lower() or "calf" in n.lower()})
+    check_muscle_rig(arm_obj, mesh_obj, character, muscles, poses)
+
+
 def test_rig_io_bad_input():
     arm_obj, mesh_obj, character = synthetic_arm_in_blender()
     bind = np.tile(np.eye(4), (2, 1, 1))
