@@ -76,16 +76,18 @@ void bindSkinning(py::module_& m) {
       "Equation 3 skinner built once from rest vertices and sparse weights (Blender's Armature modifier "
       "semantics: normalised at deform time, weight sum <= 1e-4 stays at rest); deform() per frame.")
       .def(py::init([](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, int numJoints,
-                       int grainSize, int threads) {
+                       int grainSize, int threads, double sumTolerance) {
              const Points p = pointsArg(rest, "rest_vertices");
              const SkinWeights w = weightsArg(joints, weights, p.rows());
              py::gil_scoped_release release;
-             return std::make_shared<Skinner>(p, w, numJoints, SkinnerOptions{grainSize, threads});
+             return std::make_shared<Skinner>(p, w, numJoints, SkinnerOptions{grainSize, threads, sumTolerance});
            }),
            py::arg("rest_vertices"), py::arg("weight_joints"), py::arg("weight_values"), py::arg("num_joints"),
            py::arg("grain_size") = SkinnerOptions{}.grainSize, py::arg("threads") = SkinnerOptions{}.threads,
+           py::arg("sum_tolerance") = SkinnerOptions{}.sumTolerance,
            "rest_vertices #V by 3, weight_joints/weight_values #V by K (joint -1 = empty slot) over num_joints "
-           "combined joints. ValueError names the offending vertex and slot.")
+           "combined joints. sum_tolerance > 0 requires every row to sum to 1 (else rows are normalised, like "
+           "Blender). ValueError names the offending vertex and slot.")
       .def(
           "deform",
           [](const Skinner& s, const DoubleArray& transforms) {
@@ -119,10 +121,10 @@ void bindSkinning(py::module_& m) {
       .def_property_readonly("bytes_per_frame", &Skinner::bytesPerFrame)
       .def_property(
           "threads", [](const Skinner& s) { return s.options().threads; },
-          [](Skinner& s, int t) { s.setOptions({s.options().grainSize, t}); })
+          [](Skinner& s, int t) { SkinnerOptions o = s.options(); o.threads = t; s.setOptions(o); })
       .def_property(
           "grain_size", [](const Skinner& s) { return s.options().grainSize; },
-          [](Skinner& s, int g) { s.setOptions({g, s.options().threads}); });
+          [](Skinner& s, int g) { SkinnerOptions o = s.options(); o.grainSize = g; s.setOptions(o); });
 
   m.def(
       "skin",

@@ -176,6 +176,16 @@ TEST(Skinner, BadInputNamesTheVertexAndSlot) {
   nanRest(4, 1) = INFINITY;
   EXPECT_NE(errorOf([&] { Skinner(nanRest, s.weights, 6); }).find("vertex 4"), std::string::npos);
   EXPECT_NE(errorOf([&] { Skinner(s.rest, s.weights, 0); }).find("at least one joint"), std::string::npos);
+  // Strict mode: rows must sum to 1.
+  SkinWeights unit = s.weights;
+  for (int v = 0; v < 50; ++v) unit.weights.row(v) /= unit.weights.row(v).sum();
+  SkinnerOptions strict;
+  strict.sumTolerance = 1e-6;
+  EXPECT_EQ(errorOf([&] { Skinner(s.rest, unit, 6, strict); }), "");
+  unit.weights(12, 0) += 0.25;
+  EXPECT_NE(errorOf([&] { Skinner(s.rest, unit, 6, strict); }).find("vertex 12 weights sum to 1.25"),
+            std::string::npos);
+  EXPECT_EQ(errorOf([&] { Skinner(s.rest, unit, 6); }), "");  // Blender semantics: normalised
   const Skinner skinner(s.rest, s.weights, 6);
   Points out;
   std::vector<Mat4> few(s.transforms.begin(), s.transforms.begin() + 5);

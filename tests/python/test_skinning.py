@@ -88,6 +88,11 @@ def test_bad_arrays_raise_value_errors_naming_the_index(core, arm):
         core.Skinner(v, j[:, :2], w, nb)
     with pytest.raises(ValueError, match="rows for"):
         core.Skinner(v, j[:-1], w[:-1], nb)
+    unnormalised = w.copy()
+    unnormalised[321] *= 0.5
+    core.Skinner(v, j, unnormalised, nb)  # normalised at deform time, like Blender
+    with pytest.raises(ValueError, match="vertex 321 weights sum to 0.5"):
+        core.Skinner(v, j, unnormalised, nb, sum_tolerance=1e-6)
     skinner = core.Skinner(v, j, w, nb)
     with pytest.raises(ValueError, match="N by 4 by 4"):
         skinner.deform(np.zeros((nb, 3, 4)))

@@ -72,6 +72,9 @@ void skeletonTransforms(const Skeleton& skeleton, const Pose& pose, std::vector<
 struct SkinnerOptions {
   int grainSize = 2048;  // vertices per parallel task (TBB parallel_for grain)
   int threads = 0;       // worker threads; 0 = all cores
+  // 0: any weight sum is accepted and normalised (Blender's semantics). > 0: strict, every row must sum to
+  // 1 within this tolerance (InputError naming the vertex and its sum otherwise).
+  double sumTolerance = 0.0;
 };
 
 // Equation 3 in float32 over a structure-of-arrays copy of the rest skin: positions x[], y[], z[] and,

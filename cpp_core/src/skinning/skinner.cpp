@@ -242,6 +242,9 @@ Skinner::Skinner(const Points& rest, const SkinWeights& weights, int numJoints, 
     double total = 0.0;
     for (int k = 0; k < kin; ++k)
       if (weights.joints(v, k) >= 0) total += weights.weights(v, k);
+    if (options.sumTolerance > 0.0 && std::abs(total - 1.0) > options.sumTolerance)
+      throw InputError("skinning: vertex " + std::to_string(v) + " weights sum to " + std::to_string(total) +
+                       ", not 1 (tolerance " + std::to_string(options.sumTolerance) + ")");
     const size_t base = static_cast<size_t>(v) * slots;
     if (total <= kRestWeightThreshold) {  // stays at rest: the identity block with weight 1
       s.weight[base] = 1.0f;
