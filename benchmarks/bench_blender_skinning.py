@@ -17,7 +17,7 @@ import time
 import bpy
 import numpy as np
 
-from myoskin import blender_io, core_loader
+from myoskin import blender_io, core_loader, rig_io
 
 BONES, JOINTS_PER_MUSCLE = 60, 10
 
@@ -91,6 +91,34 @@ def time_frames(arm_obj, frames):
     return best
 
 
+def time_joint_writes(arm_obj, frames):
+    """ms per frame of rig_io.write_joint_matrices for every muscle-joint bone (scaled matrices) + the
+    view-layer update, the add-on's live route; and of the write alone."""
+    names = [pb.name for pb in arm_obj.pose.bones if pb.name.startswith("muscle")]
+    skeleton = [pb.name for pb in arm_obj.pose.bones if not pb.name.startswith("muscle")]
+    parents = dict(zip(skeleton, rig_io.pose_bone_matrices(arm_obj, skeleton)))
+    rest = blender_io.bone_rest_matrices(arm_obj.data.bones)
+    index = [arm_obj.data.bones.find(n) for n in names]
+    sets = []
+    for f in range(8):
+        m = rest[index].copy()
+        m[:, :3, :3] *= np.array([1.0 + 0.05 * np.sin(f), 0.9, 1.0 + 0.05 * np.sin(f)])
+        sets.append(m)
+    layer = bpy.context.view_layer
+    best_total = best_write = float("inf")
+    for _rep in range(3):
+        write = 0.0
+        t0 = time.perf_counter()
+        for f in range(frames):
+            w0 = time.perf_counter()
+            rig_io.write_joint_matrices(arm_obj, names, sets[f % len(sets)], parents)
+            write += time.perf_counter() - w0
+            layer.update()
+        best_total = min(best_total, 1e3 * (time.perf_counter() - t0) / frames)
+        best_write = min(best_write, 1e3 * write / frames)
+    return best_total, best_write
+
+
 def main():
     args = arguments()
     core = core_loader.core()
@@ -119,6 +147,9 @@ def main():
             if core_ms:
                 line += f" | core {t} thread{'s' if t > 1 else ''} {core_ms:.3f} ms -> {ms / core_ms:5.1f}x faster"
         print(line, flush=True)
+        total, write = time_joint_writes(arm_obj, args.frames)
+        print(f"    live route: rig_io.write_joint_matrices({nj - BONES} joints) {write:.2f} ms + update = "
+              f"{total:.2f} ms/frame ({total / ms:.2f}x the plain pose change)", flush=True)
         for obj in (mesh_obj, arm_obj):
             data = obj.data
             bpy.data.objects.remove(obj)

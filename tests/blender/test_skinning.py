@@ -204,6 +204,25 @@ def test_blender_equals_core_on_the_arm_with_scaled_joints():
     ])
 
 
+def test_joint_matrices_written_bone_by_bone_when_a_bone_uses_euler_rotation():
+    """write_joint_matrices falls back to per-bone writes when another bone is not in quaternion mode."""
+    arm_obj, mesh_obj, character = synthetic_arm_in_blender()
+    jnames, bind, parents, joints, weights = scaled_extra_joints(character)
+    rig_io.create_muscle_bones(arm_obj, jnames, bind, parents)
+    combined = list(character.bone_names) + jnames
+    rig_io.write_combined_weights(mesh_obj, combined, joints, weights)
+    set_pose(arm_obj, {"forearm": axis_angle((1, 0, 0), 80)})
+    hand = arm_obj.pose.bones["hand"]
+    hand.rotation_mode = 'XYZ'
+    hand.rotation_euler = (0.4, 0.0, 0.2)
+    bpy.context.view_layer.update()
+    pose = rig_io.pose_bone_matrices(arm_obj, list(character.bone_names))
+    err, moved = compare(arm_obj, mesh_obj, character, combined, joints, weights, jnames,
+                         posed_extra_joints(character, pose, bind, parents, seed=5), bind)
+    assert moved > 1e-3 and err < TOLERANCE, (err, moved)
+    assert tuple(round(a, 6) for a in hand.rotation_euler) == (0.4, 0.0, 0.2)  # left as the user set it
+
+
 def test_blender_equals_core_on_makehuman_with_scaled_joints():
     arm_obj, mesh_obj, character = makehuman_in_blender()
     names = list(character.bone_names)
