@@ -68,10 +68,20 @@ run_render_muscles() {
 }
 
 run_bench() {
-  for b in "$BUILD"/bin/bench_*; do log "$(basename "$b")"; "$b"; done
+  for b in "$BUILD"/bin/bench_*; do
+    log "$(basename "$b")"
+    if [ "$(basename "$b")" = bench_skinning ]; then "$b" --export "$BUILD/bench_skinning_data"; else "$b"; fi
+  done
+  # Blender's Armature modifier on the same skin and weights, against the core figures just measured.
+  for t in 1 2; do
+    log "bench_blender_skinning (blender -t $t)"
+    BLENDER_USER_SCRIPTS="$BUILD/blender_scripts" blender -b --factory-startup -t "$t" --python-exit-code 1 \
+      --addons myoskin --python "$ROOT/benchmarks/bench_blender_skinning.py" -- "$BUILD/bench_skinning_data" \
+      --threads "$t" 2>&1 | grep -v -e "^Blender quit" -e "^Read prefs"
+  done
   log "bench_blender_playback (Blender background)"
   BLENDER_USER_SCRIPTS="$BUILD/blender_scripts" blender -b --factory-startup --python-exit-code 1 \
-    --addons myoskin --python "$ROOT/benchmarks/bench_blender_playback.py"
+    --addons myoskin --python "$ROOT/benchmarks/bench_blender_playback.py" 2>&1 | grep -v -e "^Blender quit" -e "^Read prefs"
 }
 
 case "${1:-}" in

@@ -14,9 +14,11 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "myoskin/deformation.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
 #include "myoskin/io.h"
@@ -183,31 +185,58 @@ int cmdDeform(const Args& args) {
   load.requireWeights = true;
   const Character c = loadCharacter(args.positional[0], load, skel);
   const PoseSequence poses = readPoseJson(args.options.at("--pose"), c.skeleton);
-  if (args.options.count("--muscles")) throw InputError("deform: --muscles needs the muscle rig, not in this build yet");
   if (!pc2 && poses.frames.size() != 1)
     throw InputError("deform: the pose file has " + std::to_string(poses.frames.size()) +
                      " frames; write them to a .pc2 (an .obj takes one pose)");
   SkinnerOptions so;
   so.threads = static_cast<int>(numberOption(args, "--threads", 0));
-  const Skinner skinner(c.mesh.vertices, c.weights, c.skeleton.numBones(), so);
+  if (so.threads < 0) throw InputError("--threads must be >= 0 (0 = all cores)");
+  // With muscles: combined weights over bones + muscle joints (Equation 3); without: plain LBS.
+  std::unique_ptr<MuscleRig> rig;
+  SkinWeights weights = c.weights;
+  if (args.options.count("--muscles")) {
+    rig = std::make_unique<MuscleRig>(c.skeleton, readMusclesJson(args.options.at("--muscles")));
+    HybridWeightOptions ho;
+    ho.dominance = numberOption(args, "--dominance", ho.dominance);
+    weights = computeHybridWeights(c.mesh, c.weights, *rig, ho);
+  } else if (args.options.count("--dominance")) {
+    throw InputError("deform: --dominance needs --muscles");
+  }
+  const int numJoints = c.skeleton.numBones() + (rig ? rig->numJoints() : 0);
+  const Skinner skinner(c.mesh.vertices, weights, numJoints, so);
+  MuscleRigState state;
+  if (rig) state = rig->makeState();
   std::vector<Mat4> transforms;
-  Points positions;
+  auto transformsFor = [&](const Pose& pose) {
+    if (rig) {
+      rig->evaluate(pose, state);
+      skinningTransforms(c.skeleton, pose, *rig, state, transforms);
+    } else {
+      skeletonTransforms(c.skeleton, pose, transforms);
+    }
+  };
   if (pc2) {
     PC2Writer writer(out, c.mesh.numVertices(), static_cast<float>(poses.startFrame), 1.0f);
     PointsF frame;
     for (const Pose& pose : poses.frames) {
-      skeletonTransforms(c.skeleton, pose, transforms);
+      transformsFor(pose);
       skinner.deform(transforms, frame);
       writer.writeFrame(frame);
     }
     writer.close();
   } else {
-    skeletonTransforms(c.skeleton, poses.frames[0], transforms);
+    Points positions;
+    transformsFor(poses.frames[0]);
     skinner.deform(transforms, positions);
     writeObj(out, positions, c.mesh.triangles);
   }
-  std::printf("deformed %s (%d vertices, %d bones, skeleton only): %zu frame(s) -> %s\n", c.name.c_str(),
-              c.mesh.numVertices(), c.skeleton.numBones(), poses.frames.size(), out.c_str());
+  if (rig)
+    std::printf("deformed %s (%d vertices, %d bones + %d muscle joints of %d muscles): %zu frame(s) -> %s\n",
+                c.name.c_str(), c.mesh.numVertices(), c.skeleton.numBones(), rig->numJoints(), rig->numMuscles(),
+                poses.frames.size(), out.c_str());
+  else
+    std::printf("deformed %s (%d vertices, %d bones, skeleton weights only): %zu frame(s) -> %s\n", c.name.c_str(),
+                c.mesh.numVertices(), c.skeleton.numBones(), poses.frames.size(), out.c_str());
   return 0;
 }
 

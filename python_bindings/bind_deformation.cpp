@@ -6,21 +6,8 @@
 #include "myoskin/character.h"
 #include "myoskin/deformation.h"
 #include "myoskin/errors.h"
-#include "myoskin/skinning.h"
 
 namespace myoskin::python {
-
-namespace {
-
-// The rig plus its evaluation state, reused across evaluate() calls (no per-frame allocation in the core);
-// the mutex serialises callers, since evaluate runs without the GIL.
-struct PyMuscleRig : MuscleRig {
-  using MuscleRig::MuscleRig;
-  MuscleRigState state = makeState();
-  std::mutex mutex;
-};
-
-}  // namespace
 
 void bindDeformation(py::module_& m) {
   py::class_<PyMuscleRig>(m, "MuscleRig",
@@ -105,30 +92,6 @@ void bindDeformation(py::module_& m) {
       py::arg("character"), py::arg("rotations"),
       "Forward kinematics: rotations #B by 4 quaternions (w, x, y, z) about each bone's head in its rest frame "
       "(Blender's rotation_quaternion) -> #B by 4 by 4 posed matrices.");
-
-  // Hybrid weights for the add-on's Bind (skinning.h); here because it takes this file's MuscleRig type.
-  m.def(
-      "compute_hybrid_weights",
-      [](const Character& c, const PyMuscleRig& rig, double dominance, int maxInfluences,
-         const std::map<std::string, double>& muscleDominance) {
-        if (c.weights.numVertices() != c.mesh.numVertices())
-          throw InputError("compute_hybrid_weights: the character has no skeleton weights (skin it first)");
-        HybridWeightOptions o;
-        o.dominance = dominance;
-        o.maxInfluences = maxInfluences;
-        o.muscleDominance = muscleDominance;
-        SkinWeights w;
-        {
-          py::gil_scoped_release release;
-          w = computeHybridWeights(c.mesh, c.skeleton, c.weights, rig, o);
-        }
-        return py::make_tuple(w.joints, w.weights);
-      },
-      py::arg("character"), py::arg("rig"), py::arg("dominance") = HybridWeightOptions{}.dominance,
-      py::arg("max_influences") = HybridWeightOptions{}.maxInfluences,
-      py::arg("muscle_dominance") = std::map<std::string, double>{},
-      "Combined weights (#V by K joints over [0, #B + #J): skeleton bones then the rig's muscle joints, -1 = "
-      "empty; #V by K weights) blending the character's skeleton weights with the rig's muscle weights.");
 }
 
 }  // namespace myoskin::python

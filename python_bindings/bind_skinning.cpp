@@ -43,27 +43,6 @@ Triangles trianglesArg(const IntArray& a, const char* name, Eigen::Index numVert
   return t;
 }
 
-// #N by 4 by 4 matrices (float64).
-std::vector<Mat4> matricesArg(const DoubleArray& a, const char* name) {
-  if (a.ndim() != 3 || a.shape(1) != 4 || a.shape(2) != 4)
-    throw InputError(std::string(name) + " must be #N by 4 by 4, got shape " + shapeOf(a));
-  std::vector<Mat4> out(a.shape(0));
-  auto r = a.unchecked<3>();
-  for (py::ssize_t i = 0; i < a.shape(0); ++i)
-    for (int j = 0; j < 4; ++j)
-      for (int k = 0; k < 4; ++k) out[i](j, k) = r(i, j, k);
-  return out;
-}
-
-py::array_t<double> matricesOut(const std::vector<Mat4>& m) {
-  py::array_t<double> out({static_cast<py::ssize_t>(m.size()), py::ssize_t(4), py::ssize_t(4)});
-  auto w = out.mutable_unchecked<3>();
-  for (size_t i = 0; i < m.size(); ++i)
-    for (int j = 0; j < 4; ++j)
-      for (int k = 0; k < 4; ++k) w(i, j, k) = m[i](j, k);
-  return out;
-}
-
 // #V by K joints + weights (the same shape; 1-D arrays are one influence per vertex).
 SkinWeights weightsArg(const IntArray& joints, const DoubleArray& weights, Eigen::Index numVertices) {
   auto cols = [](const py::array& a) { return a.ndim() == 1 ? py::ssize_t(1) : a.shape(1); };
@@ -84,15 +63,6 @@ SkinWeights weightsArg(const IntArray& joints, const DoubleArray& weights, Eigen
   return w;
 }
 
-Pose poseArg(const Character& c, const DoubleArray& poseMatrices) {
-  Pose pose;
-  pose.matrices = matricesArg(poseMatrices, "pose_matrices");
-  if (static_cast<int>(pose.matrices.size()) != c.skeleton.numBones())
-    throw InputError("pose_matrices has " + std::to_string(pose.matrices.size()) + " matrices for " +
-                     std::to_string(c.skeleton.numBones()) + " bones");
-  return pose;
-}
-
 py::array_t<float> newPointsF(int n) { return py::array_t<float>({static_cast<py::ssize_t>(n), py::ssize_t(3)}); }
 
 }  // namespace
@@ -106,20 +76,22 @@ void bindSkinning(py::module_& m) {
       "Equation 3 skinner built once from rest vertices and sparse weights (Blender's Armature modifier "
       "semantics: normalised at deform time, weight sum <= 1e-4 stays at rest); deform() per frame.")
       .def(py::init([](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, int numJoints,
-                       int grainSize, int threads) {
+                       int grainSize, int threads, double sumTolerance) {
              const Points p = pointsArg(rest, "rest_vertices");
              const SkinWeights w = weightsArg(joints, weights, p.rows());
              py::gil_scoped_release release;
-             return std::make_shared<Skinner>(p, w, numJoints, SkinnerOptions{grainSize, threads});
+             return std::make_shared<Skinner>(p, w, numJoints, SkinnerOptions{grainSize, threads, sumTolerance});
            }),
            py::arg("rest_vertices"), py::arg("weight_joints"), py::arg("weight_values"), py::arg("num_joints"),
            py::arg("grain_size") = SkinnerOptions{}.grainSize, py::arg("threads") = SkinnerOptions{}.threads,
+           py::arg("sum_tolerance") = SkinnerOptions{}.sumTolerance,
            "rest_vertices #V by 3, weight_joints/weight_values #V by K (joint -1 = empty slot) over num_joints "
-           "combined joints. ValueError names the offending vertex and slot.")
+           "combined joints. sum_tolerance > 0 requires every row to sum to 1 (else rows are normalised, like "
+           "Blender). ValueError names the offending vertex and slot.")
       .def(
           "deform",
           [](const Skinner& s, const DoubleArray& transforms) {
-            const std::vector<Mat4> t = matricesArg(transforms, "transforms");
+            const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
             py::array_t<float> out = newPointsF(s.numVertices());
             float* data = out.mutable_data();
             {
@@ -136,7 +108,7 @@ void bindSkinning(py::module_& m) {
                 !(out.flags() & py::array::c_style) || !out.writeable())
               throw InputError("out must be a writeable C-contiguous float32 array of shape (" +
                                std::to_string(s.numVertices()) + ", 3), got " + shapeOf(out));
-            const std::vector<Mat4> t = matricesArg(transforms, "transforms");
+            const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
             float* data = out.mutable_data();
             py::gil_scoped_release release;
             s.deform(t, data);
@@ -149,17 +121,17 @@ void bindSkinning(py::module_& m) {
       .def_property_readonly("bytes_per_frame", &Skinner::bytesPerFrame)
       .def_property(
           "threads", [](const Skinner& s) { return s.options().threads; },
-          [](Skinner& s, int t) { s.setOptions({s.options().grainSize, t}); })
+          [](Skinner& s, int t) { SkinnerOptions o = s.options(); o.threads = t; s.setOptions(o); })
       .def_property(
           "grain_size", [](const Skinner& s) { return s.options().grainSize; },
-          [](Skinner& s, int g) { s.setOptions({g, s.options().threads}); });
+          [](Skinner& s, int g) { SkinnerOptions o = s.options(); o.grainSize = g; s.setOptions(o); });
 
   m.def(
       "skin",
       [](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, const DoubleArray& transforms) {
         const Points p = pointsArg(rest, "rest_vertices");
         const SkinWeights w = weightsArg(joints, weights, p.rows());
-        const std::vector<Mat4> t = matricesArg(transforms, "transforms");
+        const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
         py::gil_scoped_release release;
         return skin(p, w, t);
       },
@@ -170,38 +142,65 @@ void bindSkinning(py::module_& m) {
   // Poses and transforms
   // ==========================================================================
   m.def(
-      "pose_from_local_rotations",
-      [](const Character& c, const DoubleArray& rotations) {
-        if (rotations.ndim() != 2 || rotations.shape(1) != 4)
-          throw InputError("rotations must be #B by 4 quaternions (w, x, y, z), got shape " + shapeOf(rotations));
-        if (rotations.shape(0) != c.skeleton.numBones())
-          throw InputError("rotations has " + std::to_string(rotations.shape(0)) + " rows for " +
-                           std::to_string(c.skeleton.numBones()) + " bones");
-        auto r = rotations.unchecked<2>();
-        std::vector<Eigen::Quaterniond> q;
-        for (py::ssize_t b = 0; b < rotations.shape(0); ++b) {
-          const Eigen::Quaterniond qb(r(b, 0), r(b, 1), r(b, 2), r(b, 3));
-          if (!qb.coeffs().allFinite() || qb.norm() < 1e-12)
-            throw InputError("rotations: row " + std::to_string(b) + " is not a usable quaternion");
-          q.push_back(qb);
-        }
-        return matricesOut(poseFromLocalRotations(c.skeleton, q).matrices);
-      },
-      py::arg("character"), py::arg("rotations"),
-      "#B by 4 by 4 posed bone matrices (mesh space, like PoseBone.matrix) from per-bone local rotations "
-      "(#B by 4 quaternions w, x, y, z, like PoseBone.rotation_quaternion).");
-  m.def(
-      "rest_pose", [](const Character& c) { return matricesOut(restPose(c.skeleton).matrices); }, py::arg("character"),
-      "#B by 4 by 4 posed matrices of the rest pose (the rest matrices).");
-  m.def(
       "skeleton_transforms",
       [](const Character& c, const DoubleArray& poseMatrices) {
         std::vector<Mat4> t;
-        skeletonTransforms(c.skeleton, poseArg(c, poseMatrices), t);
-        return matricesOut(t);
+        skeletonTransforms(c.skeleton, poseFromArray(poseMatrices, c.skeleton.numBones()), t);
+        return matricesToArray(t);
       },
       py::arg("character"), py::arg("pose_matrices"),
       "#B by 4 by 4 skinning transforms pose_i * rest_i^-1 (plain LBS) for #B by 4 by 4 posed matrices.");
+
+  m.def(
+      "skinning_transforms",
+      [](const Character& c, const DoubleArray& poseMatrices, const PyMuscleRig& rig, const DoubleArray& jointMatrices) {
+        const Pose pose = poseFromArray(poseMatrices, c.skeleton.numBones());
+        MuscleRigState state = rig.makeState();
+        state.jointMatrices = matricesFromArray(jointMatrices, "joint_matrices");
+        std::vector<Mat4> t;
+        skinningTransforms(c.skeleton, pose, rig, state, t);
+        return matricesToArray(t);
+      },
+      py::arg("character"), py::arg("pose_matrices"), py::arg("rig"), py::arg("joint_matrices"),
+      "#B + #J combined skinning transforms: pose_i * rest_i^-1 for the bones, then joint_j * bind_j^-1 for "
+      "the muscle joints (joint_matrices from rig.evaluate(pose_matrices)).");
+
+  // ==========================================================================
+  // Hybrid weights
+  // ==========================================================================
+  m.def(
+      "hybrid_weights",
+      [](const Character& c, const PyMuscleRig& rig, double dominance, const std::map<std::string, double>& perMuscle,
+         int maxInfluences, double fullDistance, double falloffDistance, int smoothingIterations, double endTaper) {
+        if (!c.hasWeights()) throw InputError("hybrid_weights: character '" + c.name + "' has no skin weights");
+        if (rig.skeleton().numBones() != c.skeleton.numBones())
+          throw InputError("hybrid_weights: the rig has " + std::to_string(rig.skeleton().numBones()) +
+                           " bones, the character " + std::to_string(c.skeleton.numBones()));
+        HybridWeightOptions o;
+        o.dominance = dominance;
+        o.muscleDominance = perMuscle;
+        o.maxInfluences = maxInfluences;
+        o.fullDistance = fullDistance;
+        o.falloffDistance = falloffDistance;
+        o.smoothingIterations = smoothingIterations;
+        o.endTaper = endTaper;
+        SkinWeights w;
+        {
+          py::gil_scoped_release release;
+          w = computeHybridWeights(c.mesh, c.weights, rig, o);
+        }
+        return py::make_tuple(w.joints, w.weights);
+      },
+      py::arg("character"), py::arg("rig"), py::arg("dominance") = HybridWeightOptions{}.dominance,
+      py::arg("muscle_dominance") = std::map<std::string, double>{},
+      py::arg("max_influences") = HybridWeightOptions{}.maxInfluences,
+      py::arg("full_distance") = HybridWeightOptions{}.fullDistance,
+      py::arg("falloff_distance") = HybridWeightOptions{}.falloffDistance,
+      py::arg("smoothing_iterations") = HybridWeightOptions{}.smoothingIterations,
+      py::arg("end_taper") = HybridWeightOptions{}.endTaper,
+      "Combined weights (joints #V by K over [0, #B + #J), weights #V by K; rows sum to 1) from the "
+      "character's skeleton weights and the rig's muscles: distance to each muscle's surface and side, "
+      "smoothed, split between neighbouring muscle joints; dominance 0 gives the skeleton weights.");
 
   // ==========================================================================
   // Quality measures
@@ -240,7 +239,7 @@ void bindSkinning(py::module_& m) {
         const Points r = pointsArg(rest, "rest"), d = pointsArg(deformed, "deformed");
         const SkinWeights w = weightsArg(joints, weights, r.rows());
         return localBulge(r, trianglesArg(triangles, "triangles", r.rows()), d, w,
-                          matricesArg(skeletonTransforms, "skeleton_transforms"));
+                          matricesFromArray(skeletonTransforms, "skeleton_transforms"));
       },
       py::arg("rest"), py::arg("triangles"), py::arg("deformed"), py::arg("weight_joints"), py::arg("weight_values"),
       py::arg("skeleton_transforms"),

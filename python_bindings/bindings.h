@@ -5,8 +5,10 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <mutex>
 #include <vector>
 
+#include "myoskin/deformation.h"
 #include "myoskin/skeleton.h"
 #include "myoskin/types.h"
 
@@ -18,8 +20,17 @@ void bindCharacter(py::module_& m);
 void bindMuscles(py::module_& m);
 void bindGenerate(py::module_& m);
 void bindExtraction(py::module_& m);
-void bindSkinning(py::module_& m);
 void bindDeformation(py::module_& m);
+void bindSkinning(py::module_& m);
+
+// The _core.MuscleRig object (bind_deformation.cpp; also taken by bind_skinning.cpp): the rig plus its
+// evaluation state, reused across evaluate() calls (no per-frame allocation in the core); the mutex
+// serialises callers, since evaluate runs without the GIL.
+struct PyMuscleRig : MuscleRig {
+  using MuscleRig::MuscleRig;
+  MuscleRigState state = makeState();
+  std::mutex mutex;
+};
 
 // ============================================================================
 // Array conversions shared by the parts (array_convert.cpp)

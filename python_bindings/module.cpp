@@ -33,6 +33,6 @@ PYBIND11_MODULE(_core, m) {
   myoskin::python::bindMuscles(m);
   myoskin::python::bindGenerate(m);
   myoskin::python::bindExtraction(m);
-  myoskin::python::bindSkinning(m);
   myoskin::python::bindDeformation(m);
+  myoskin::python::bindSkinning(m);
 }

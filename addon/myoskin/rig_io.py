@@ -250,31 +250,56 @@ def pose_bone_matrices(armature_obj, bone_names=None):
     return m[idx]
 
 
+_structure_cache = {}
+
+
+def _joint_structure(armature_obj, names):
+    """(bone indices of the joints, their parents' bone indices (-1 = none), parent names, pose-bone
+    indices) for this armature's current bone layout; cached per layout (bone names are read each call,
+    so adding, removing or renaming bones refreshes it)."""
+    bones = armature_obj.data.bones
+    keys = tuple(bones.keys())
+    key = (armature_obj.data.as_pointer(), keys, tuple(names))
+    hit = _structure_cache.get(key)
+    if hit is not None:
+        return hit
+    position = {n: i for i, n in enumerate(keys)}
+    missing = [n for n in names if n not in position]
+    if missing:
+        raise ValueError(f"write_joint_matrices: no bone '{missing[0]}' in '{armature_obj.name}'")
+    index = np.array([position[n] for n in names], dtype=np.int64)
+    parent_names = [bones[n].parent.name if bones[n].parent else None for n in names]
+    parent_index = np.array([position[p] if p else -1 for p in parent_names], dtype=np.int64)
+    pose_position = {n: i for i, n in enumerate(armature_obj.pose.bones.keys())}
+    pose_index = np.array([pose_position[n] for n in names], dtype=np.int64)
+    if len(_structure_cache) > 64:
+        _structure_cache.clear()
+    _structure_cache[key] = (index, parent_index, parent_names, pose_index)
+    return _structure_cache[key]
+
+
 def _local_bases(armature_obj, names, joint_matrices, parent_matrices):
     """matrix_basis of each joint so that its posed matrix is joint_matrices[j]: Blender poses a child as
-    parent_pose @ parent_rest^-1 @ rest @ basis (full inheritance)."""
-    bones = armature_obj.data.bones
-    rest = blender_io.bone_rest_matrices(bones)
-    posed = None
-    bases = np.empty((len(names), 4, 4))
-    for j, n in enumerate(names):
-        i = bones.find(n)
-        if i < 0:
-            raise ValueError(f"write_joint_matrices: no bone '{n}' in '{armature_obj.name}'")
-        parent = bones[i].parent
-        if parent is None:
-            to_local = np.linalg.inv(rest[i])
-        else:
-            p = bones.find(parent.name)
-            if parent_matrices is not None and parent.name in parent_matrices:
-                parent_pose = np.asarray(parent_matrices[parent.name], dtype=np.float64)
+    parent_pose @ parent_rest^-1 @ rest @ basis (full inheritance). Batched over the joints."""
+    index, parent_index, parent_names, pose_index = _joint_structure(armature_obj, names)
+    rest = blender_io.bone_rest_matrices(armature_obj.data.bones)
+    parent_pose = np.tile(np.eye(4), (len(names), 1, 1))
+    parent_rest = np.tile(np.eye(4), (len(names), 1, 1))
+    has_parent = parent_index >= 0
+    if has_parent.any():
+        given = parent_matrices or {}
+        posed = None
+        for j in np.flatnonzero(has_parent):
+            p = parent_names[j]
+            if p in given:
+                parent_pose[j] = given[p]
             else:
                 if posed is None:
                     posed = pose_bone_matrices(armature_obj)
-                parent_pose = posed[p]
-            to_local = np.linalg.inv(rest[i]) @ rest[p] @ np.linalg.inv(parent_pose)
-        bases[j] = to_local @ joint_matrices[j]
-    return bases
+                parent_pose[j] = posed[parent_index[j]]
+        parent_rest[has_parent] = rest[parent_index[has_parent]]
+    to_local = np.linalg.inv(rest[index]) @ parent_rest @ np.linalg.inv(parent_pose)
+    return to_local @ joint_matrices, pose_index
 
 
 def write_joint_matrices(armature_obj, joint_names, joint_matrices, parent_matrices=None):
@@ -287,10 +312,9 @@ def write_joint_matrices(armature_obj, joint_names, joint_matrices, parent_matri
     _require_armature(armature_obj, "write_joint_matrices")
     names = [str(n) for n in joint_names]
     matrices = _matrices(joint_matrices, len(names), "joint_matrices")
-    bases = _local_bases(armature_obj, names, matrices, parent_matrices)
+    bases, index = _local_bases(armature_obj, names, matrices, parent_matrices)
     pose_bones = armature_obj.pose.bones
-    index = [pose_bones.find(n) for n in names]
-    joint_set = set(index)
+    joint_set = set(index.tolist())
     others_quaternion = all(pb.rotation_mode == 'QUATERNION' for i, pb in enumerate(pose_bones) if i not in joint_set)
     if others_quaternion and len(pose_bones) > 1:
         flat = np.empty(len(pose_bones) * 16, dtype=np.float32)
@@ -300,5 +324,5 @@ def write_joint_matrices(armature_obj, joint_names, joint_matrices, parent_matri
         pose_bones.foreach_set("matrix_basis", all_bases.ravel())
     else:
         for i, basis in zip(index, bases):
-            pose_bones[i].matrix_basis = Matrix(basis.tolist())
+            pose_bones[int(i)].matrix_basis = Matrix(basis.tolist())
     armature_obj.update_tag()

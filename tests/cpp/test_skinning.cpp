@@ -176,6 +176,16 @@ TEST(Skinner, BadInputNamesTheVertexAndSlot) {
   nanRest(4, 1) = INFINITY;
   EXPECT_NE(errorOf([&] { Skinner(nanRest, s.weights, 6); }).find("vertex 4"), std::string::npos);
   EXPECT_NE(errorOf([&] { Skinner(s.rest, s.weights, 0); }).find("at least one joint"), std::string::npos);
+  // Strict mode: rows must sum to 1.
+  SkinWeights unit = s.weights;
+  for (int v = 0; v < 50; ++v) unit.weights.row(v) /= unit.weights.row(v).sum();
+  SkinnerOptions strict;
+  strict.sumTolerance = 1e-6;
+  EXPECT_EQ(errorOf([&] { Skinner(s.rest, unit, 6, strict); }), "");
+  unit.weights(12, 0) += 0.25;
+  EXPECT_NE(errorOf([&] { Skinner(s.rest, unit, 6, strict); }).find("vertex 12 weights sum to 1.25"),
+            std::string::npos);
+  EXPECT_EQ(errorOf([&] { Skinner(s.rest, unit, 6); }), "");  // Blender semantics: normalised
   const Skinner skinner(s.rest, s.weights, 6);
   Points out;
   std::vector<Mat4> few(s.transforms.begin(), s.transforms.begin() + 5);
@@ -287,4 +297,17 @@ TEST(PointCache, WriteReadRoundTripAndBadFiles) {
   w.close();
   EXPECT_EQ(readPC2(path).frames.size(), 1u);
   std::filesystem::remove_all(dir);
+}
+
+TEST(Skinner, PortableKernelGivesTheSameResultAsTheVectorKernel) {
+  const RandomSkin s = randomSkin(3000, 8, 20, 21);
+  const Skinner skinner(s.rest, s.weights, 20);
+  PointsF fast, portable;
+  skinner.deform(s.transforms, fast);
+  setenv("MYOSKIN_SCALAR_SKINNING", "1", 1);
+  skinner.deform(s.transforms, portable);
+  unsetenv("MYOSKIN_SCALAR_SKINNING");
+  EXPECT_LT((fast - portable).cwiseAbs().maxCoeff(), 1e-6f);
+  Points ref = reference(s.rest, s.weights, s.transforms);
+  EXPECT_LT((portable.cast<double>() - ref).cwiseAbs().maxCoeff(), 2e-6);
 }

@@ -35,7 +35,7 @@ def bend(core, character, degrees, bone="forearm", axis=(0, 0, 1)):
     q = np.tile([1.0, 0.0, 0.0, 0.0], (len(names), 1))
     half = np.radians(degrees) / 2
     q[names.index(bone)] = [np.cos(half), *(np.sin(half) * np.asarray(axis, dtype=float))]
-    return core.pose_from_local_rotations(character, q)
+    return core.pose_from_rotations(character, q)
 
 
 def test_skinner_matches_numpy_with_scaled_joints_and_threads(core, arm):
@@ -88,8 +88,13 @@ def test_bad_arrays_raise_value_errors_naming_the_index(core, arm):
         core.Skinner(v, j[:, :2], w, nb)
     with pytest.raises(ValueError, match="rows for"):
         core.Skinner(v, j[:-1], w[:-1], nb)
+    unnormalised = w.copy()
+    unnormalised[321] *= 0.5
+    core.Skinner(v, j, unnormalised, nb)  # normalised at deform time, like Blender
+    with pytest.raises(ValueError, match="vertex 321 weights sum to 0.5"):
+        core.Skinner(v, j, unnormalised, nb, sum_tolerance=1e-6)
     skinner = core.Skinner(v, j, w, nb)
-    with pytest.raises(ValueError, match="#N by 4 by 4"):
+    with pytest.raises(ValueError, match="N by 4 by 4"):
         skinner.deform(np.zeros((nb, 3, 4)))
     with pytest.raises(ValueError, match=f"3 transforms for {nb} joints"):
         skinner.deform(np.tile(np.eye(4), (3, 1, 1)))
@@ -99,10 +104,10 @@ def test_bad_arrays_raise_value_errors_naming_the_index(core, arm):
         skinner.deform(t)
     with pytest.raises(ValueError, match="out must be"):
         skinner.deform_into(np.tile(np.eye(4), (nb, 1, 1)), np.empty((5, 3), dtype=np.float32))
-    with pytest.raises(ValueError, match="rows for"):
-        core.pose_from_local_rotations(arm, np.tile([1.0, 0, 0, 0], (nb + 1, 1)))
-    with pytest.raises(ValueError, match="row 1 is not a usable quaternion"):
-        core.pose_from_local_rotations(arm, np.array([[1.0, 0, 0, 0], [0, 0, 0, 0]] + [[1.0, 0, 0, 0]] * (nb - 2)))
+    with pytest.raises(ValueError, match="one quaternion"):
+        core.pose_from_rotations(arm, np.tile([1.0, 0, 0, 0], (nb + 1, 1)))
+    with pytest.raises(ValueError, match="quaternion of bone '.*' is not usable"):
+        core.pose_from_rotations(arm, np.array([[1.0, 0, 0, 0], [0, 0, 0, 0]] + [[1.0, 0, 0, 0]] * (nb - 2)))
 
 
 def test_elbow_bend_volume_and_bulge_measures(core, arm):
@@ -176,3 +181,53 @@ def test_cli_deform_obj_and_pc2(core, tmp_path):
     r = run_cli("deform", str(tmp_path / "arm.obj"), "--pose", str(tmp_path / "pose.json"), "-o",
                 str(tmp_path / "x.ply"))
     assert r.returncode == 1 and ".obj or .pc2" in r.stderr
+
+
+def test_hybrid_weights_rest_pose_and_bad_input(core, arm):
+    muscles, _report = core.extract_muscles(arm)
+    rig = core.MuscleRig(arm, muscles)
+    joints, weights = core.hybrid_weights(arm, rig)
+    nb = arm.num_bones
+    assert joints.shape == weights.shape == (arm.num_vertices, 8)
+    assert np.abs(weights.sum(axis=1) - 1).max() < 1e-12
+    assert joints.max() < nb + rig.num_joints and ((joints >= nb) & (weights > 0.5)).any()
+    rest = core.rest_pose(arm)
+    transforms = core.skinning_transforms(arm, rest, rig, rig.evaluate(rest)["joint_matrices"])
+    assert transforms.shape == (nb + rig.num_joints, 4, 4)
+    skinner = core.Skinner(arm.vertices, joints, weights, nb + rig.num_joints)
+    assert np.abs(skinner.deform(transforms) - arm.vertices).max() < 1e-6
+    off = core.hybrid_weights(arm, rig, dominance=0.0)
+    assert (off[0] < nb).all()
+    one = muscles[0].name
+    without = core.hybrid_weights(arm, rig, muscle_dominance={one: 0.0})[0]
+    first, count = rig.joint_offset(0), rig.joint_count(0)
+    assert not ((without >= nb + first) & (without < nb + first + count)).any()
+    with pytest.raises(ValueError, match="unknown muscle 'nope'"):
+        core.hybrid_weights(arm, rig, muscle_dominance={"nope": 1.0})
+    with pytest.raises(ValueError, match="dominance must be in"):
+        core.hybrid_weights(arm, rig, dominance=2.0)
+    with pytest.raises(ValueError, match="joint matrices for"):
+        core.skinning_transforms(arm, rest, rig, rig.evaluate(rest)["joint_matrices"][:-1])
+
+
+def test_cli_deform_with_muscles_matches_the_module(core, tmp_path):
+    assert run_cli("generate", "arm", "-o", str(tmp_path)).returncode == 0
+    assert run_cli("extract", str(tmp_path / "arm.obj"), "-o", str(tmp_path / "m.json")).returncode == 0
+    character = core.load_character(str(tmp_path / "arm.obj"))
+    seq = {"frames": [{"bones": {"forearm": {"rotation_axis_angle": [a, 1, 0, 0]}}} for a in (0, 140)]}
+    (tmp_path / "seq.json").write_text(json.dumps(seq))
+    r = run_cli("deform", str(tmp_path / "arm.obj"), "--muscles", str(tmp_path / "m.json"), "--pose",
+                str(tmp_path / "seq.json"), "-o", str(tmp_path / "out.pc2"))
+    assert r.returncode == 0, r.stderr
+    assert "muscle joints" in r.stdout
+    frames = core.read_pc2(str(tmp_path / "out.pc2"))["frames"]
+    rig = core.MuscleRig(character, core.read_muscles(str(tmp_path / "m.json")))
+    joints, weights = core.hybrid_weights(character, rig)
+    pose = bend(core, character, 140, axis=(1, 0, 0))
+    transforms = core.skinning_transforms(character, pose, rig, rig.evaluate(pose)["joint_matrices"])
+    expected = core.Skinner(character.vertices, joints, weights, transforms.shape[0]).deform(transforms)
+    assert np.abs(frames[0] - character.vertices).max() < 1e-6
+    assert np.abs(frames[1] - expected).max() < 1e-5
+    plain = core.skin(character.vertices, character.weight_joints, character.weight_values,
+                      core.skeleton_transforms(character, pose))
+    assert np.abs(frames[1] - plain).max() > 1e-3  # the muscles change the result

@@ -68,7 +68,7 @@ def restore_weights(skin):
 
 def hybrid_weights(core, character, rig):
     """(#V by K joints over combined joints, #V by K weights) for the skin (core, issue 5)."""
-    result = core.compute_hybrid_weights(character, rig)
+    result = core.hybrid_weights(character, rig)
     return np.asarray(result[0]), np.asarray(result[1])
 
 

@@ -37,18 +37,21 @@ struct HybridWeightOptions {
   // falloffDistance * r (so smooth skin away from every muscle gets none).
   double fullDistance = 0.35;
   double falloffDistance = 1.5;
-  int smoothingIterations = 4;   // Laplacian smoothing passes of each muscle's weight over the skin
+  int smoothingIterations = 24;  // Laplacian smoothing passes (one edge ring each) of each muscle's weight
+  // Fraction of the muscle's rest action path (origin -> insertion) at each end over which its weight
+  // fades to 0, so the skin over the tendons and attachments follows the bones (0 = no fade).
+  double endTaper = 0.3;
 };
 
 // Combined weights (#V by maxInfluences over combined joints [0, #B + #J)) from the skeleton weights
 // (#V by K over the #B bones) and the rig's muscles: each muscle's weight at a vertex comes from the
-// vertex's distance to the muscle's rest surface (Muscle::surface, lofted from the sections when empty)
+// vertex's distance to the muscle's rest surface (MuscleRig::restSurface)
 // and the muscle's side (the skin normal must face away from the muscle), times the dominance; it is
 // smoothed over the skin, split linearly between the two muscle joints nearest along the muscle, and the
 // skeleton weights (normalised) fill the remainder. Every row sums to 1 where the skeleton row was
 // non-empty (sum > 1e-4); empty rows stay empty. Throws InputError on mismatched sizes or bad options.
-SkinWeights computeHybridWeights(const Mesh& skin, const Skeleton& skeleton, const SkinWeights& skeletonWeights,
-                                 const MuscleRig& rig, const HybridWeightOptions& options = {});
+SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWeights, const MuscleRig& rig,
+                                 const HybridWeightOptions& options = {});
 
 // ============================================================================
 // Transforms
@@ -69,6 +72,9 @@ void skeletonTransforms(const Skeleton& skeleton, const Pose& pose, std::vector<
 struct SkinnerOptions {
   int grainSize = 2048;  // vertices per parallel task (TBB parallel_for grain)
   int threads = 0;       // worker threads; 0 = all cores
+  // 0: any weight sum is accepted and normalised (Blender's semantics). > 0: strict, every row must sum to
+  // 1 within this tolerance (InputError naming the vertex and its sum otherwise).
+  double sumTolerance = 0.0;
 };
 
 // Equation 3 in float32 over a structure-of-arrays copy of the rest skin: positions x[], y[], z[] and,

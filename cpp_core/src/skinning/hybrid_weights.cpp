@@ -8,7 +8,6 @@
 #include <limits>
 
 #include "myoskin/errors.h"
-#include "myoskin/extraction.h"
 #include "myoskin/skinning.h"
 
 namespace myoskin {
@@ -79,14 +78,15 @@ void checkOptions(const HybridWeightOptions& o, const MuscleRig& rig) {
   if (!(o.fullDistance >= 0.0 && o.falloffDistance > o.fullDistance) || !std::isfinite(o.falloffDistance))
     throw InputError("hybrid weights: need 0 <= fullDistance < falloffDistance");
   if (o.smoothingIterations < 0) throw InputError("hybrid weights: smoothingIterations must be >= 0");
+  if (!(o.endTaper >= 0.0 && o.endTaper <= 0.5)) throw InputError("hybrid weights: endTaper must be in [0, 0.5]");
 }
 
 }  // namespace
 
-SkinWeights computeHybridWeights(const Mesh& skin, const Skeleton& skeleton, const SkinWeights& skeletonWeights,
-                                 const MuscleRig& rig, const HybridWeightOptions& options) {
+SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWeights, const MuscleRig& rig,
+                                 const HybridWeightOptions& options) {
   validateMesh(skin, "skin");
-  const int nv = skin.numVertices(), nb = skeleton.numBones();
+  const int nv = skin.numVertices(), nb = rig.skeleton().numBones();
   validateSkinWeights(skeletonWeights, nv, nb);
   checkOptions(options, rig);
   for (int j = 0; j < rig.numJoints(); ++j)
@@ -107,11 +107,13 @@ SkinWeights computeHybridWeights(const Mesh& skin, const Skeleton& skeleton, con
     double dominance = options.dominance;
     if (auto it = options.muscleDominance.find(muscle.name); it != options.muscleDominance.end()) dominance *= it->second;
     if (dominance <= 0.0 || muscle.sections.empty() || rig.jointCount(m) < 1) continue;
-    const Mesh surface = muscle.surface.numVertices() > 0 ? muscle.surface : loftMuscleSurface(muscle);
+    const Mesh& surface = rig.restSurface(m);
     double radius = 0.0;
     for (const MuscleSection& s : muscle.sections) radius += std::sqrt(std::max(s.a, 0.0) * std::max(s.b, 0.0));
     radius /= static_cast<double>(muscle.sections.size());
     const double d0 = options.fullDistance * radius, d1 = options.falloffDistance * radius;
+    const Vec3 origin = muscle.origin.position, path = muscle.insertion.position - muscle.origin.position;
+    const double pathLength2 = path.squaredNorm();
     Vec3 lo, hi;
     boundingBox(surface.vertices, lo, hi);
     lo.array() -= d1;
@@ -145,7 +147,14 @@ SkinWeights computeHybridWeights(const Mesh& skin, const Skeleton& skeleton, con
         const Vec3 away = p - surface.vertices.row(q).transpose();
         const double cosine = d > 1e-9 ? away.dot(normals.row(near[i]).transpose()) / d : 1.0;
         const double side = std::clamp(2.0 * cosine, 0.0, 1.0);
-        value[i] = dominance * f * side;
+        // Fade towards the attachments along the rest action path.
+        double taper = 1.0;
+        if (options.endTaper > 0.0 && pathLength2 > 0.0) {
+          const double u = std::clamp((p - origin).dot(path) / pathLength2, 0.0, 1.0);
+          const double e = std::min(u, 1.0 - u) / options.endTaper;
+          taper = e >= 1.0 ? 1.0 : e * e * (3.0 - 2.0 * e);
+        }
+        value[i] = dominance * f * side * taper;
       }
     });
     std::vector<double> smoothed(value.size());

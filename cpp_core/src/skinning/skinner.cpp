@@ -7,8 +7,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
+#include <cstring>
 #include <limits>
-#include <optional>
 
 #include "myoskin/errors.h"
 #include "myoskin/skinning.h"
@@ -42,73 +43,143 @@ constexpr int kMaxJoints = std::numeric_limits<uint16_t>::max() - 1;
 
 std::string where(int v, int k) { return "vertex " + std::to_string(v) + " slot " + std::to_string(k); }
 
-// Transforms as float 3 x 4 row-major blocks, with one extra identity block at index #J.
-std::vector<float> packTransforms(const std::vector<Mat4>& transforms, int numJoints) {
+// Eight floats: one AVX register, or two SSE registers on older CPUs (GCC vector extension).
+typedef float v8 __attribute__((vector_size(32)));
+typedef float v4 __attribute__((vector_size(16)));
+
+// One joint's transform as two v8 blocks of its columns: (c0, c1) and (c2, c3), each column x, y, z, 0.
+struct alignas(32) PackedTransform {
+  v8 a, b;
+};
+
+// Transforms packed, with one extra identity at index #J (rest vertices and padding slots point there).
+std::vector<PackedTransform> packTransforms(const std::vector<Mat4>& transforms, int numJoints) {
   if (static_cast<int>(transforms.size()) != numJoints)
     throw InputError("skinning: " + std::to_string(transforms.size()) + " transforms for " +
                      std::to_string(numJoints) + " joints");
-  std::vector<float> packed(12 * (static_cast<size_t>(numJoints) + 1));
+  std::vector<PackedTransform> packed(static_cast<size_t>(numJoints) + 1);
   for (int j = 0; j <= numJoints; ++j) {
     const Mat4 m = j < numJoints ? transforms[j] : Mat4::Identity();
     if (!m.allFinite()) throw InputError("skinning: transform " + std::to_string(j) + " has a NaN or infinite value");
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 4; ++c) packed[12 * j + 4 * r + c] = static_cast<float>(m(r, c));
+    float c[16];
+    for (int col = 0; col < 4; ++col) {
+      for (int r = 0; r < 3; ++r) c[4 * col + r] = static_cast<float>(m(r, col));
+      c[4 * col + 3] = 0.0f;
+    }
+    std::memcpy(&packed[j].a, c, sizeof(v8));
+    std::memcpy(&packed[j].b, c + 8, sizeof(v8));
   }
   return packed;
 }
 
-// Blend the vertex's K matrices, then transform its rest position.
-template <int K, typename Out>
-void kernel(const Skinner::Impl& s, const float* T, int begin, int end, int slots, Out* out) {
+// AVX2/FMA kernel: blend the vertex's K transforms as column pairs, then apply to its rest position.
+template <int K>
+inline __attribute__((always_inline)) void bodyVector(const uint16_t* joint, const float* weight, const float* x,
+                                                      const float* y, const float* z, const PackedTransform* T,
+                                                      int slots, int begin, int end, float* out) {
   const int k = K > 0 ? K : slots;
   for (int v = begin; v < end; ++v) {
-    const uint16_t* jv = s.joint.data() + static_cast<size_t>(v) * k;
-    const float* wv = s.weight.data() + static_cast<size_t>(v) * k;
-    float m[12];
-    {
-      const float* t = T + 12 * jv[0];
-      const float w = wv[0];
-      for (int e = 0; e < 12; ++e) m[e] = w * t[e];
-    }
+    const uint16_t* jv = joint + static_cast<size_t>(v) * k;
+    const float* wv = weight + static_cast<size_t>(v) * k;
+    v8 acc0 = wv[0] * T[jv[0]].a;
+    v8 acc1 = wv[0] * T[jv[0]].b;
     for (int i = 1; i < k; ++i) {
-      const float* t = T + 12 * jv[i];
-      const float w = wv[i];
-      for (int e = 0; e < 12; ++e) m[e] += w * t[e];
+      acc0 += wv[i] * T[jv[i]].a;
+      acc1 += wv[i] * T[jv[i]].b;
     }
-    const float px = s.x[v], py = s.y[v], pz = s.z[v];
-    out[3 * static_cast<size_t>(v) + 0] = m[0] * px + m[1] * py + m[2] * pz + m[3];
-    out[3 * static_cast<size_t>(v) + 1] = m[4] * px + m[5] * py + m[6] * pz + m[7];
-    out[3 * static_cast<size_t>(v) + 2] = m[8] * px + m[9] * py + m[10] * pz + m[11];
+    const float px = x[v], py = y[v], pz = z[v];
+    const v8 p0 = {px, px, px, px, py, py, py, py};
+    const v8 p1 = {pz, pz, pz, pz, 1.0f, 1.0f, 1.0f, 1.0f};
+    const v8 s = acc0 * p0 + acc1 * p1;
+    const v4 lo = {s[0], s[1], s[2], s[3]};
+    const v4 hi = {s[4], s[5], s[6], s[7]};
+    const v4 r = lo + hi;
+    std::memcpy(out + 3 * static_cast<size_t>(v), &r, 3 * sizeof(float));
   }
 }
 
-template <typename Out>
-void runRange(const Skinner::Impl& s, const float* T, int begin, int end, Out* out) {
-  switch (s.slots) {
-    case 1: kernel<1>(s, T, begin, end, 1, out); break;
-    case 2: kernel<2>(s, T, begin, end, 2, out); break;
-    case 3: kernel<3>(s, T, begin, end, 3, out); break;
-    case 4: kernel<4>(s, T, begin, end, 4, out); break;
-    case 5: kernel<5>(s, T, begin, end, 5, out); break;
-    case 6: kernel<6>(s, T, begin, end, 6, out); break;
-    case 7: kernel<7>(s, T, begin, end, 7, out); break;
-    case 8: kernel<8>(s, T, begin, end, 8, out); break;
-    default: kernel<0>(s, T, begin, end, s.slots, out); break;
+// Portable kernel (any x86-64 / other CPUs): the same arithmetic on the 12 used floats of each block.
+template <int K>
+inline void bodyScalar(const uint16_t* joint, const float* weight, const float* x, const float* y, const float* z,
+                       const PackedTransform* T, int slots, int begin, int end, float* out) {
+  const int k = K > 0 ? K : slots;
+  static constexpr int used[12] = {0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14};
+  for (int v = begin; v < end; ++v) {
+    const uint16_t* jv = joint + static_cast<size_t>(v) * k;
+    const float* wv = weight + static_cast<size_t>(v) * k;
+    float m[12] = {};
+    for (int i = 0; i < k; ++i) {
+      const float* t = reinterpret_cast<const float*>(&T[jv[i]]);
+      for (int e = 0; e < 12; ++e) m[e] += wv[i] * t[used[e]];
+    }
+    const float px = x[v], py = y[v], pz = z[v];
+    float* o = out + 3 * static_cast<size_t>(v);
+    o[0] = m[0] * px + m[3] * py + m[6] * pz + m[9];
+    o[1] = m[1] * px + m[4] * py + m[7] * pz + m[10];
+    o[2] = m[2] * px + m[5] * py + m[8] * pz + m[11];
   }
 }
 
-template <typename Out>
-void deformInto(const Skinner::Impl& s, const std::vector<Mat4>& transforms, Out* out) {
-  const std::vector<float> T = packTransforms(transforms, s.numJoints);
+#define MYOSKIN_SKIN_SWITCH(BODY)                                            \
+  switch (slots) {                                                          \
+    case 1: BODY<1>(joint, weight, x, y, z, T, 1, begin, end, out); break;  \
+    case 2: BODY<2>(joint, weight, x, y, z, T, 2, begin, end, out); break;  \
+    case 3: BODY<3>(joint, weight, x, y, z, T, 3, begin, end, out); break;  \
+    case 4: BODY<4>(joint, weight, x, y, z, T, 4, begin, end, out); break;  \
+    case 5: BODY<5>(joint, weight, x, y, z, T, 5, begin, end, out); break;  \
+    case 6: BODY<6>(joint, weight, x, y, z, T, 6, begin, end, out); break;  \
+    case 7: BODY<7>(joint, weight, x, y, z, T, 7, begin, end, out); break;  \
+    case 8: BODY<8>(joint, weight, x, y, z, T, 8, begin, end, out); break;  \
+    default: BODY<0>(joint, weight, x, y, z, T, slots, begin, end, out); break; \
+  }
+
+void skinRangeScalar(const uint16_t* joint, const float* weight, const float* x, const float* y, const float* z,
+                     const PackedTransform* T, int slots, int begin, int end, float* out) {
+  MYOSKIN_SKIN_SWITCH(bodyScalar)
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#define MYOSKIN_HAVE_AVX2_KERNEL 1
+// Compiled for AVX2 + FMA and chosen at run time when the CPU has them.
+__attribute__((target("avx2,fma"))) void skinRangeAvx2(const uint16_t* joint, const float* weight, const float* x,
+                                                       const float* y, const float* z, const PackedTransform* T,
+                                                       int slots, int begin, int end, float* out) {
+  MYOSKIN_SKIN_SWITCH(bodyVector)
+}
+
+bool cpuHasAvx2() {
+  static const bool has = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  return has;
+}
+#endif
+
+using RangeKernel = void (*)(const uint16_t*, const float*, const float*, const float*, const float*,
+                             const PackedTransform*, int, int, int, float*);
+
+// The AVX2 kernel when the CPU has it, unless MYOSKIN_SCALAR_SKINNING is set (tests of the portable path).
+RangeKernel chooseKernel() {
+#ifdef MYOSKIN_HAVE_AVX2_KERNEL
+  if (cpuHasAvx2() && !std::getenv("MYOSKIN_SCALAR_SKINNING")) return skinRangeAvx2;
+#endif
+  return skinRangeScalar;
+}
+
+void runRange(RangeKernel kernel, const Skinner::Impl& s, const PackedTransform* T, int begin, int end, float* out) {
+  kernel(s.joint.data(), s.weight.data(), s.x.data(), s.y.data(), s.z.data(), T, s.slots, begin, end, out);
+}
+
+void deformInto(const Skinner::Impl& s, const std::vector<Mat4>& transforms, float* out) {
+  const std::vector<PackedTransform> T = packTransforms(transforms, s.numJoints);
+  const RangeKernel kernel = chooseKernel();
   const int grain = std::max(1, s.options.grainSize);
   auto body = [&] {
     tbb::parallel_for(
         tbb::blocked_range<int>(0, s.numVertices, grain),
-        [&](const tbb::blocked_range<int>& r) { runRange(s, T.data(), r.begin(), r.end(), out); },
+        [&](const tbb::blocked_range<int>& r) { runRange(kernel, s, T.data(), r.begin(), r.end(), out); },
         tbb::simple_partitioner());
   };
   if (s.options.threads == 1 || s.numVertices <= grain) {
-    runRange(s, T.data(), 0, s.numVertices, out);
+    runRange(kernel, s, T.data(), 0, s.numVertices, out);
   } else if (s.arena) {
     s.arena->execute(body);
   } else {
@@ -171,6 +242,9 @@ Skinner::Skinner(const Points& rest, const SkinWeights& weights, int numJoints, 
     double total = 0.0;
     for (int k = 0; k < kin; ++k)
       if (weights.joints(v, k) >= 0) total += weights.weights(v, k);
+    if (options.sumTolerance > 0.0 && std::abs(total - 1.0) > options.sumTolerance)
+      throw InputError("skinning: vertex " + std::to_string(v) + " weights sum to " + std::to_string(total) +
+                       ", not 1 (tolerance " + std::to_string(options.sumTolerance) + ")");
     const size_t base = static_cast<size_t>(v) * slots;
     if (total <= kRestWeightThreshold) {  // stays at rest: the identity block with weight 1
       s.weight[base] = 1.0f;
@@ -225,8 +299,9 @@ void Skinner::deform(const std::vector<Mat4>& transforms, PointsF& out) const {
 }
 
 void Skinner::deform(const std::vector<Mat4>& transforms, Points& out) const {
-  if (out.rows() != impl_->numVertices) out.resize(impl_->numVertices, 3);
-  deformInto(*impl_, transforms, out.data());
+  PointsF f(impl_->numVertices, 3);
+  deformInto(*impl_, transforms, f.data());
+  out = f.cast<double>();
 }
 
 Points skin(const Points& rest, const SkinWeights& weights, const std::vector<Mat4>& transforms,
