@@ -3,7 +3,9 @@
 animated elbow + shoulder on the synthetic arm at ~50k vertices, in one run:
 
     skeleton only      the plain Armature modifier, the character's own weights (baseline)
-    bound, live        muscles bound, live update handlers on (muscle surfaces hidden)
+    bound, live        muscles bound, live update handlers on (muscle surfaces hidden): F-curve prediction
+    bound, live, 2-pass  the same with a (no-op) bone constraint, so the pose is read after evaluation and
+                       Blender evaluates twice (the route for IK / constraint-driven skeletons)
     bound, live+surf   the same with the muscle surfaces shown (written every frame)
     bound, baked       muscle joints baked to the Action, live update off (what a farm / no add-on plays)
 
@@ -83,11 +85,15 @@ def main():
           f"bones + {joints} muscle joints ({len(state.muscles)} muscles), {args.frames} frames; bind "
           f"{bind_seconds:.2f} s; cases interleaved, best of {args.repeats}", flush=True)
 
-    def configure(live, surfaces):
+    constraint = arm.pose.bones["hand"].constraints.new('LIMIT_ROTATION')  # limits off: changes nothing
+
+    def configure(live, surfaces, constrained=False):
         state.live = live
         state.collection.hide_viewport = not surfaces
+        constraint.mute = not constrained
 
     cases = [("skeleton only", plain_scene, None), ("bound, live", bound_scene, (True, False)),
+             ("bound, live, 2-pass", bound_scene, (True, False, True)),
              ("bound, live+surfaces", bound_scene, (True, True)), ("bound, baked", bound_scene, (False, False))]
     best = {name: float("inf") for name, _s, _c in cases}
     for _ in range(args.repeats):

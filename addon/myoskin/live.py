@@ -152,7 +152,7 @@ def _predictable(arm_obj, live):
     if anim is not None and (len(anim.drivers) or any(len(t.strips) for t in anim.nla_tracks)):
         return False
     for pb in arm_obj.pose.bones:
-        if len(pb.constraints):
+        if any(not c.mute and c.influence > 0.0 for c in pb.constraints):
             return False
     for bone in arm_obj.data.bones:
         if not bone.use_inherit_rotation or bone.inherit_scale != 'FULL' or not bone.use_local_location:
