@@ -135,11 +135,10 @@ LIMITS = (
 class MyoskinSceneSettings(bpy.types.PropertyGroup):
     """The sidebar's tool settings (what the buttons pass to the operators)."""
     spacing: FloatProperty(name="Section Spacing", description="Distance between cutting planes "
-                           "(0 = automatic: 1/80 of the character's extent; -1 = the preferences' value)",
-                           default=-1.0, min=-1.0,
+                           "(0 = automatic: 1/80 of the character's extent)", default=0.0, min=0.0,
                            soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
-    min_confidence: FloatProperty(name="Min Confidence", description="Drop muscles less significant than this "
-                                  "(-1 = the preferences' value)", default=-1.0, min=-1.0, max=1.0)
+    min_confidence: FloatProperty(name="Min Confidence", description="Drop muscles less significant than this",
+                                  default=0.6, min=0.0, max=1.0)
     limit: EnumProperty(name="Limit To", items=LIMITS, default='ALL')
     vertex_group: StringProperty(name="Vertex Group", description="Region for Limit To / Add Muscle")
     region_source: EnumProperty(name="Region", items=(

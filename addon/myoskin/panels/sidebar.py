@@ -88,9 +88,10 @@ class MYOSKIN_UL_muscles(bpy.types.UIList):
     def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
         row = layout.row(align=True)
         row.prop(item, "enabled", text="")
-        row.prop(item, "name", text="", emboss=False, icon='MOD_SKIN' if item.enabled else 'HIDE_ON')
+        split = row.split(factor=0.8, align=True)
+        split.prop(item, "name", text="", emboss=False)
         missing = item.surface is None or item.surface.name not in bpy.data.objects
-        row.label(text="missing" if missing else f"{item.confidence:.2f}", icon='ERROR' if missing else 'NONE')
+        split.label(text="!" if missing else f"{item.confidence:.2f}", icon='ERROR' if missing else 'NONE')
 
 
 class MYOSKIN_PT_edit(_WorkflowStep, bpy.types.Panel):
@@ -127,8 +128,8 @@ class MYOSKIN_PT_edit(_WorkflowStep, bpy.types.Panel):
             if item.wrap_type == 'bone':
                 col.prop(item, "wrap_side", expand=True)
         for end in ("origin", "insertion"):
+            col.label(text=f"{end.title()} on {getattr(item, end + '_bone')}", icon='EMPTY_AXIS')
             row = col.row(align=True)
-            row.label(text=f"{end.title()}: {getattr(item, end + '_bone')}")
             locator = getattr(item, end + "_locator")
             if locator is not None:
                 row.prop(locator, "location", text="")
