@@ -8,7 +8,6 @@ Run (ctest does this with the environment set):
 import json
 import os
 import sys
-import types
 import warnings
 
 import addon_utils
@@ -85,42 +84,16 @@ def operator_error(op, **kwargs):
     return ""
 
 
-class FakeLayout:
-    """Records what a panel's draw() puts on screen (UILayout is unavailable in background mode)."""
-
-    def __init__(self, log=None):
-        self.log = [] if log is None else log
-        self.enabled = True
-        self.alert = False
-
-    def _child(self, *args, **kwargs):
-        return FakeLayout(self.log)
-
-    row = column = box = split = _child
-
-    def label(self, text="", icon='NONE'):
-        self.log.append(("label", text))
-
-    def operator(self, idname, text="", icon='NONE'):
-        self.log.append(("operator", idname))
-
-    def prop(self, data, attr, **kwargs):
-        self.log.append(("prop", attr))
-
-    def text(self):
-        return "\n".join(t for kind, t in self.log if kind == "label")
-
-
-def draw_panel(panel_cls, context=None):
-    layout = FakeLayout()
-    fake_self = types.SimpleNamespace(layout=layout, hint=getattr(panel_cls, "hint", ""))
-    panel_cls.draw(fake_self, context or bpy.context)
-    return layout
+from fake_layout import draw_panel  # noqa: E402  (UILayout stand-in)
 
 
 PANELS = ("MYOSKIN_PT_main", "MYOSKIN_PT_extract", "MYOSKIN_PT_edit", "MYOSKIN_PT_bind", "MYOSKIN_PT_bake",
           "MYOSKIN_PT_skin_muscles")
-OPERATORS = ("add_synthetic_arm", "character_info")
+OPERATORS = ("add_synthetic_arm", "character_info", "extract_muscles", "add_muscle_from_region", "remove_muscle",
+             "mirror_muscle", "select_muscle", "refresh_muscles", "snap_locator", "bind", "unbind", "bake_action",
+             "export_gltf", "bake_pc2")
+UNDO_OPERATORS = ("add_synthetic_arm", "extract_muscles", "add_muscle_from_region", "remove_muscle", "mirror_muscle",
+                  "refresh_muscles", "snap_locator", "bind", "unbind", "bake_action")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -143,7 +116,8 @@ def test_addon_enabled_and_registered():
     assert (sidebar.bl_space_type, sidebar.bl_region_type, sidebar.bl_category) == ('VIEW_3D', 'UI', 'Myoskin')
     for op in OPERATORS:
         assert 'REGISTER' in getattr(bpy.types, f"MYOSKIN_OT_{op}").bl_options
-    assert 'UNDO' in bpy.types.MYOSKIN_OT_add_synthetic_arm.bl_options
+    for op in UNDO_OPERATORS:  # they change data
+        assert 'UNDO' in getattr(bpy.types, f"MYOSKIN_OT_{op}").bl_options, op
 
 
 def test_bl_info_and_manifest():
