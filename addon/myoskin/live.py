@@ -284,10 +284,17 @@ def forget(arm_name=None):
         _cache.pop(arm_name, None)
 
 
+@persistent
+def on_reload(*_args):
+    """load_post / undo_post / redo_post: the data were replaced, so cached rigs and poses are stale."""
+    forget()
+
+
 def _handlers():
     h = bpy.app.handlers
     return ((h.frame_change_pre, on_frame_change_pre), (h.frame_change_post, on_update),
-            (h.depsgraph_update_post, on_update))
+            (h.depsgraph_update_post, on_update), (h.load_post, on_reload), (h.undo_post, on_reload),
+            (h.redo_post, on_reload))
 
 
 def register():
