@@ -80,7 +80,7 @@ def main():
     bind_seconds = time.perf_counter() - t0
     state = arm.myoskin
     assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=args.frames) == {'FINISHED'}
-    joints = len(__import__("json").loads(state.joint_names_text.as_string())["joint_names"])
+    joints = len(__import__("json").loads(state.bind_text.as_string())["joint_names"])
     print(f"bench_blender_playback: {len(skin.data.vertices):,} vertices, {len(arm.data.bones) - joints} "
           f"bones + {joints} muscle joints ({len(state.muscles)} muscles), {args.frames} frames; bind "
           f"{bind_seconds:.2f} s; cases interleaved, best of {args.repeats}", flush=True)

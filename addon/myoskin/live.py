@@ -74,7 +74,7 @@ def skeleton_character(record):
 
 
 def bind_record_text(arm_obj):
-    text = arm_obj.myoskin.joint_names_text
+    text = arm_obj.myoskin.bind_text
     return text.as_string() if text is not None else ""
 
 

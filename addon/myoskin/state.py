@@ -20,7 +20,7 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
             surface                       the muscle's mesh object
         .active_index                     the UI list's selection
         .bound, .dirty                    muscle joints are bound to the rig / edited since the bind
-        .joint_names_text                 Text datablock "<armature>.bind.json", the bind record: skeleton
+        .bind_text                        Text datablock "<armature>.bind.json", the bind record: skeleton
                                           (names, parents, heads, tails, rest), the bound muscles' json,
                                           joint names, surface object names (live update rebuilds from it)
     skin_obj["myoskin_original_weights"]  ID property: the skin's vertex groups before Bind (Unbind
@@ -115,7 +115,8 @@ class MyoskinRigState(bpy.types.PropertyGroup):
     live: BoolProperty(name="Live Update", default=True, update=_live_changed,
                        description="Move muscle joints (and the muscle surfaces) whenever the skeleton moves; "
                                    "off: the baked Action plays (also without the add-on)")
-    joint_names_text: PointerProperty(name="Muscle Joint Bones", type=bpy.types.Text)
+    bind_text: PointerProperty(name="Bind Record", type=bpy.types.Text,
+                               description="<armature>.bind.json: what Bind built (live update rebuilds from it)")
 
 
 def rig_state(arm_obj):

@@ -80,7 +80,7 @@ def flex(arm, degrees, bone="forearm"):
 
 
 def joint_names(state):
-    return json.loads(state.joint_names_text.as_string())["joint_names"]
+    return json.loads(state.bind_text.as_string())["joint_names"]
 
 
 def core_skin(arm, skin, state):
@@ -284,7 +284,7 @@ def test_edits_after_bind_ask_for_a_new_bind():
     text = draw_panel(bpy.types.MYOSKIN_PT_bind).text()
     assert "Bind again" in text, text
     assert bpy.ops.myoskin.bind() == {'FINISHED'} and not state.dirty
-    record = json.loads(state.joint_names_text.as_string())
+    record = json.loads(state.bind_text.as_string())
     moved = core().muscles_from_json(record["muscles"])[0]
     assert abs(np.asarray(moved.insertion)[2] - np.array(state.muscles[0].insertion_locator.location)[2]) < 1e-9
 

@@ -119,7 +119,7 @@ def bind(context, skin, arm):
         "joint_names": list(rig.joint_names), "muscles": core.muscles_to_json(muscles),
         "surfaces": [surfaces.get(m.name, "") for m in muscles],
     }
-    state.joint_names_text = _text(f"{arm.name}.bind.json", json.dumps(record, indent=1))
+    state.bind_text = _text(f"{arm.name}.bind.json", json.dumps(record, indent=1))
     state.skin = skin
     state.bound, state.dirty = True, False
     context.scene.render.use_lock_interface = True  # handlers run on the render thread during F12
@@ -131,15 +131,15 @@ def bind(context, skin, arm):
 def unbind(skin, arm):
     """Remove the muscle-joint bones and their groups, restore the original weights exactly."""
     state = rig_state(arm)
-    record = json.loads(state.joint_names_text.as_string()) if state.joint_names_text else {}
+    record = json.loads(state.bind_text.as_string()) if state.bind_text else {}
     rig_io.remove_muscle_bones(arm)
     restore_weights(skin)
     if record.get("added_modifier"):
         mod = armature_modifier(skin, arm)
         if mod is not None:
             skin.modifiers.remove(mod)
-    if state.joint_names_text is not None:
-        bpy.data.texts.remove(state.joint_names_text)
+    if state.bind_text is not None:
+        bpy.data.texts.remove(state.bind_text)
     state.bound, state.dirty = False, False
     live.forget(arm.name)
 
@@ -198,7 +198,7 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
         if self.frame_end < self.frame_start:
             raise ValueError(f"Frame range {self.frame_start}-{self.frame_end} is empty")
         scene = context.scene
-        names = json.loads(state.joint_names_text.as_string())["joint_names"]
+        names = json.loads(state.bind_text.as_string())["joint_names"]
         missing = [n for n in names if n not in arm.pose.bones]
         if missing:
             raise ValueError(f"Muscle bone '{missing[0]}' is missing (deleted or renamed?): bind again")
