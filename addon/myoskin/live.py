@@ -73,6 +73,32 @@ def skeleton_character(record):
         np.zeros((0, 0)))
 
 
+def apply_settings_to_bound(arm_obj):
+    """After a muscle setting changed on a bound armature: when the bound joints stay the same (names and
+    bind matrices, e.g. a new bulge factor), update the bind record so live update uses the new settings
+    at once and return True; otherwise (the rest path or joints changed) return False: bind again."""
+    from . import muscle_io
+    text = arm_obj.myoskin.bind_text
+    if text is None:
+        return False
+    core = core_loader.core()
+    record = json.loads(text.as_string())
+    try:
+        muscles = [core.reattach_muscle(m) for m in muscle_io.state_to_core(arm_obj)]
+        rig = core.MuscleRig(skeleton_character(record), muscles)
+    except ValueError:
+        return False
+    old = live_rig(arm_obj).rig
+    if list(rig.joint_names) != record["joint_names"] or \
+            np.abs(np.asarray(rig.bind_matrices) - np.asarray(old.bind_matrices)).max() > 1e-9:
+        return False
+    record["muscles"] = core.muscles_to_json(muscles)
+    text.from_string(json.dumps(record, indent=1))
+    forget(arm_obj.name)
+    update_armature(arm_obj, force=True)
+    return True
+
+
 def bind_record_text(arm_obj):
     text = arm_obj.myoskin.bind_text
     return text.as_string() if text is not None else ""

@@ -358,9 +358,13 @@ def mirrored_muscle(arm_obj, item):
 
 
 def on_settings_changed(arm_obj, item):
+    """A muscle's settings changed: redraw its wrap display, rewrite muscles.json; on a bound rig apply the
+    change live when the joints stay the same (bulge), else mark the rig edited (bind again)."""
+    from . import live
     state = rig_state(arm_obj)
     update_wrap_display(arm_obj, item)
-    state.dirty = state.bound
+    if state.bound and not state.dirty:
+        state.dirty = not live.apply_settings_to_bound(arm_obj)
     sync_text(arm_obj)
 
 

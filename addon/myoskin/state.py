@@ -17,9 +17,13 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
             wrap_type/bone/radius/side    action-path wrap (win over `data`)
             origin_bone, insertion_bone   attachment bones (win over `data`)
             origin_locator, insertion_locator, wrap_locator   empties (positions win over `data`)
+            origin_rest, insertion_rest   the attachment positions last built (a locator moved elsewhere
+                                          re-attaches the muscle)
             surface                       the muscle's mesh object
         .active_index                     the UI list's selection
-        .bound, .dirty                    muscle joints are bound to the rig / edited since the bind
+        .bound, .dirty                    muscle joints are bound to the rig / edited since the bind (a
+                                          bulge change is applied to the bound rig at once)
+        .live                             live update on (off: the baked Action plays)
         .bind_text                        Text datablock "<armature>.bind.json", the bind record: skeleton
                                           (names, parents, heads, tails, rest), the bound muscles' json,
                                           joint names, surface object names (live update rebuilds from it)

@@ -273,6 +273,24 @@ def test_muscle_surfaces_follow_the_pose():
     assert np.array_equal(co0, co1)
 
 
+def test_bulge_edit_after_bind_applies_live():
+    arm, skin, state, _ = bound_arm()
+    flex(arm, 110.0)
+    before = evaluated(skin)
+    enabled = [m for m in state.muscles if m.enabled]
+    for item in enabled:
+        item.bulge = 3.0
+    assert not state.dirty  # same joints and bind matrices: no new bind needed
+    after = evaluated(skin)
+    assert np.abs(after - core_skin(arm, skin, state)).max() < 1e-5
+    assert np.abs(after - before).max() > 1e-4  # the new bulge shows
+    record = json.loads(state.bind_text.as_string())
+    assert all(abs(m.bulge - 3.0) < 1e-12 for m in core().muscles_from_json(record["muscles"]))
+    # a change of the joint count does change the joints: bind again
+    enabled[0].joints = 6
+    assert state.dirty
+
+
 def test_edits_after_bind_ask_for_a_new_bind():
     arm, skin, state, _ = bound_arm()
     assert not state.dirty
