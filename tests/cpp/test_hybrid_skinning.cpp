@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <functional>
 
+#include "test_support.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
 #include "myoskin/skinning.h"
@@ -67,14 +68,6 @@ double muscleShare(const SkinWeights& w, int v, int numBones, int first = -1, in
   return s;
 }
 
-std::string errorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
 
 }  // namespace
 
@@ -246,33 +239,33 @@ TEST(HybridWeights, BadInput) {
   const MuscleRig rig(c.skeleton, a.muscles);
   SkinWeights w = c.weights;
   w.weights(5, 0) = std::nan("");
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, w, rig); }).find("vertex 5"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, w, rig); }).find("vertex 5"), std::string::npos);
   w = c.weights;
   w.joints(9, 1) = 99;
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, w, rig); }).find("vertex 9"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, w, rig); }).find("vertex 9"), std::string::npos);
   w = c.weights;
   w.weights(11, 0) = -1;
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, w, rig); }).find("negative"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, w, rig); }).find("negative"), std::string::npos);
   SkinWeights shortW;
   shortW.joints = c.weights.joints.topRows(10);
   shortW.weights = c.weights.weights.topRows(10);
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, shortW, rig); }).find("10 rows"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, shortW, rig); }).find("10 rows"), std::string::npos);
   HybridWeightOptions o;
   o.dominance = 1.5;
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("dominance"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("dominance"), std::string::npos);
   o = {};
   o.muscleDominance["nope"] = 1.0;
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("'nope'"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("'nope'"), std::string::npos);
   o = {};
   o.maxInfluences = 0;
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("maxInfluences"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("maxInfluences"), std::string::npos);
   o = {};
   o.falloffDistance = 0.1;
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("falloffDistance"),
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("falloffDistance"),
             std::string::npos);
   MuscleRigState state = rig.makeState();
   state.jointMatrices.pop_back();
   std::vector<Mat4> t;
-  EXPECT_NE(errorOf([&] { skinningTransforms(c.skeleton, restPose(c.skeleton), rig, state, t); }).find("joint matrices"),
+  EXPECT_NE(test::inputErrorOf([&] { skinningTransforms(c.skeleton, restPose(c.skeleton), rig, state, t); }).find("joint matrices"),
             std::string::npos);
 }
