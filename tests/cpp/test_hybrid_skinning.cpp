@@ -269,3 +269,44 @@ TEST(HybridWeights, BadInput) {
   EXPECT_NE(test::inputErrorOf([&] { skinningTransforms(c.skeleton, restPose(c.skeleton), rig, state, t); }).find("joint matrices"),
             std::string::npos);
 }
+
+TEST(HybridWeights, MusclesTakeWeightOnlyFromTheBonesTheySpan) {
+  // A muscle between upper_arm attachments leaves the clavicle's and forearm's share of the skin's blend
+  // near the shoulder and elbow alone; a muscle across the elbow may take both arm bones' shares.
+  const ArmRig& a = armRig();
+  const Character& c = a.character;
+  const Skeleton& sk = c.skeleton;
+  const MuscleRig rig(sk, a.muscles);
+  const SkinWeights w = computeHybridWeights(c.mesh, c.weights, rig);
+  const int nb = sk.numBones();
+  auto spans = [&](int m, int bone) {
+    const int o = sk.find(a.muscles[m].origin.bone), i = sk.find(a.muscles[m].insertion.bone);
+    const int lo = std::min(o, i), hi = std::max(o, i);  // the arm is one chain: bones lo..hi
+    return bone >= lo && bone <= hi;
+  };
+  int checked = 0, kept = 0;
+  for (int v = 0; v < c.mesh.numVertices(); ++v) {
+    std::vector<double> skeleton(nb, 0.0), hybrid(nb, 0.0);
+    double sum = 0;
+    for (int k = 0; k < c.weights.influences(); ++k)
+      if (c.weights.joints(v, k) >= 0) skeleton[c.weights.joints(v, k)] += c.weights.weights(v, k), sum += c.weights.weights(v, k);
+    std::vector<int> musclesHere;
+    for (int k = 0; k < w.influences(); ++k) {
+      const int j = w.joints(v, k);
+      if (j < 0) continue;
+      if (j < nb) hybrid[j] += w.weights(v, k);
+      else musclesHere.push_back(rig.jointMuscle()[j - nb]);
+    }
+    if (musclesHere.empty()) continue;
+    for (int b = 0; b < nb; ++b) {
+      bool spanned = false;
+      for (int m : musclesHere) spanned = spanned || spans(m, b);
+      if (spanned || skeleton[b] <= 0) continue;
+      ++checked;
+      EXPECT_NEAR(hybrid[b], skeleton[b] / sum, 1e-9) << "vertex " << v << " bone " << sk.bones[b].name;
+      kept += std::abs(hybrid[b] - skeleton[b] / sum) < 1e-9;
+    }
+  }
+  std::printf("muscle vertices with weight on a bone no muscle there spans: %d, weight kept exactly: %d\n", checked, kept);
+  EXPECT_GT(checked, 100) << "the arm's muscles reach skin the skeleton blends with other bones";
+}
