@@ -535,3 +535,33 @@ TEST(MuscleRig, DegeneratePosesStayFinite) {
   rig.evaluate(q, st, true);
   for (const Mat4& J : st.jointMatrices) EXPECT_TRUE(J.allFinite());
 }
+
+TEST(MuscleRig, ForearmRollIsDistributedAlongMusclesThatReachIt) {
+  // A muscle from the upper arm to the forearm: twisting the forearm 60 degrees about its axis turns the
+  // joint frames about the path by a share growing from ~0 at the origin to ~60 at the insertion.
+  const Muscle mu = biceps();
+  for (bool distribute : {true, false}) {
+    MuscleRigOptions o;
+    o.distributeTwist = distribute;
+    const MuscleRig rig(arm(), {mu}, o);
+    MuscleRigState st = rig.makeState();
+    rig.evaluate(armPose(0.0, 60 * kPi / 180), st, true);
+    double prev = -1.0;
+    for (int k = 0; k < rig.numJoints(); ++k) {
+      const Mat3 B = rig.bindMatrices()[k].topLeftCorner<3, 3>();
+      const Mat3 R = st.jointMatrices[k].topLeftCorner<3, 3>().colwise().normalized();
+      const Vec3 t = R.col(1);
+      const double roll = std::atan2(B.col(0).cross(R.col(0)).dot(t), B.col(0).dot(R.col(0))) * 180 / kPi;
+      if (distribute) {
+        EXPECT_GT(roll, prev) << "joint " << k;
+        EXPECT_GT(roll, 0.0);
+        EXPECT_LT(roll, 60.0);
+      } else {
+        EXPECT_NEAR(roll, 0.0, 0.1) << "joint " << k;  // only the insertion's slight move turns the path
+      }
+      prev = roll;
+    }
+    if (distribute) EXPECT_GT(prev, 40.0) << "the last joint, near the insertion, turns with the forearm";
+    EXPECT_TRUE(st.surfaces[0].allFinite());
+  }
+}

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <functional>
 
+#include "test_support.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
 #include "myoskin/skinning.h"
@@ -67,14 +68,6 @@ double muscleShare(const SkinWeights& w, int v, int numBones, int first = -1, in
   return s;
 }
 
-std::string errorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
 
 }  // namespace
 
@@ -190,6 +183,17 @@ TEST(HybridSkinning, ElbowBendKeepsVolumeBetterAndTheBicepsBulges) {
         c.weights.weights.row(v).maxCoeff() > 0.999 * c.weights.weights.row(v).sum())
       region.push_back(v);
   ASSERT_GT(region.size(), 200u);
+  // The elbow region (per-region volume): skin blended between upper arm and forearm.
+  IndexVector elbow = IndexVector::Constant(c.mesh.numVertices(), -1);
+  const int upperBone = c.skeleton.find("upper_arm"), foreBone = c.skeleton.find("forearm");
+  for (int v = 0; v < c.mesh.numVertices(); ++v) {
+    double wu = 0, wf = 0;
+    for (int k = 0; k < c.weights.influences(); ++k) {
+      if (c.weights.joints(v, k) == upperBone) wu += c.weights.weights(v, k);
+      if (c.weights.joints(v, k) == foreBone) wf += c.weights.weights(v, k);
+    }
+    if (wu > 0.02 && wf > 0.02) elbow[v] = 0;
+  }
   MuscleRigState state = rig.makeState();
   double hybridChange = 0, plainChange = 0, hybridBulge = 0, plainBulge = 0, plainBulgeMax = 0;
   for (double degrees : {35.0, 70.0, 105.0, 140.0}) {
@@ -211,10 +215,15 @@ TEST(HybridSkinning, ElbowBendKeepsVolumeBetterAndTheBicepsBulges) {
       plainBulge += bp[v] / region.size();
       plainBulgeMax = std::max(plainBulgeMax, std::abs(bp[v]));
     }
-    std::printf("elbow %5.1f deg: skin volume change with muscles %+.3f %%, skeleton only %+.3f %% | biceps stretch "
-                "%.3f, biceps-region bulge with muscles %+.2f mm, plain LBS %+.4f mm (max |%.4f| mm)\n",
-                degrees, 100 * hybridChange, 100 * plainChange, state.stretch[a.biceps], 1e3 * hybridBulge,
-                1e3 * plainBulge, 1e3 * plainBulgeMax);
+    const double elbowHybrid = regionVolumeChange(c.mesh.vertices, ph, c.mesh.triangles, elbow, 1)[0];
+    const double elbowPlain = regionVolumeChange(c.mesh.vertices, pp, c.mesh.triangles, elbow, 1)[0];
+    std::printf("elbow %5.1f deg: skin volume change with muscles %+.3f %%, skeleton only %+.3f %% (elbow region "
+                "%+.1f %% vs %+.1f %%) | biceps stretch %.3f, biceps-region bulge with muscles %+.2f mm, plain LBS "
+                "%+.4f mm (max |%.4f| mm)\n",
+                degrees, 100 * hybridChange, 100 * plainChange, 100 * elbowHybrid, 100 * elbowPlain,
+                state.stretch[a.biceps], 1e3 * hybridBulge, 1e3 * plainBulge, 1e3 * plainBulgeMax);
+    // The joint region collapses less at every angle.
+    EXPECT_LT(std::abs(elbowHybrid), std::abs(elbowPlain)) << degrees << " degrees";
   }
   // At 140 degrees: less volume change than plain LBS, an outward bulge where LBS has none. (At smaller
   // angles the straight biceps path lifts its skin and the volume grows more than LBS loses: printed above.)
@@ -230,33 +239,74 @@ TEST(HybridWeights, BadInput) {
   const MuscleRig rig(c.skeleton, a.muscles);
   SkinWeights w = c.weights;
   w.weights(5, 0) = std::nan("");
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, w, rig); }).find("vertex 5"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, w, rig); }).find("vertex 5"), std::string::npos);
   w = c.weights;
   w.joints(9, 1) = 99;
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, w, rig); }).find("vertex 9"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, w, rig); }).find("vertex 9"), std::string::npos);
   w = c.weights;
   w.weights(11, 0) = -1;
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, w, rig); }).find("negative"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, w, rig); }).find("negative"), std::string::npos);
   SkinWeights shortW;
   shortW.joints = c.weights.joints.topRows(10);
   shortW.weights = c.weights.weights.topRows(10);
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, shortW, rig); }).find("10 rows"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, shortW, rig); }).find("10 rows"), std::string::npos);
   HybridWeightOptions o;
   o.dominance = 1.5;
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("dominance"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("dominance"), std::string::npos);
   o = {};
   o.muscleDominance["nope"] = 1.0;
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("'nope'"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("'nope'"), std::string::npos);
   o = {};
   o.maxInfluences = 0;
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("maxInfluences"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("maxInfluences"), std::string::npos);
   o = {};
   o.falloffDistance = 0.1;
-  EXPECT_NE(errorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("falloffDistance"),
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, o); }).find("falloffDistance"),
             std::string::npos);
   MuscleRigState state = rig.makeState();
   state.jointMatrices.pop_back();
   std::vector<Mat4> t;
-  EXPECT_NE(errorOf([&] { skinningTransforms(c.skeleton, restPose(c.skeleton), rig, state, t); }).find("joint matrices"),
+  EXPECT_NE(test::inputErrorOf([&] { skinningTransforms(c.skeleton, restPose(c.skeleton), rig, state, t); }).find("joint matrices"),
             std::string::npos);
+}
+
+TEST(HybridWeights, MusclesTakeWeightOnlyFromTheBonesTheySpan) {
+  // A muscle between upper_arm attachments leaves the clavicle's and forearm's share of the skin's blend
+  // near the shoulder and elbow alone; a muscle across the elbow may take both arm bones' shares.
+  const ArmRig& a = armRig();
+  const Character& c = a.character;
+  const Skeleton& sk = c.skeleton;
+  const MuscleRig rig(sk, a.muscles);
+  const SkinWeights w = computeHybridWeights(c.mesh, c.weights, rig);
+  const int nb = sk.numBones();
+  auto spans = [&](int m, int bone) {
+    const int o = sk.find(a.muscles[m].origin.bone), i = sk.find(a.muscles[m].insertion.bone);
+    const int lo = std::min(o, i), hi = std::max(o, i);  // the arm is one chain: bones lo..hi
+    return bone >= lo && bone <= hi;
+  };
+  int checked = 0, kept = 0;
+  for (int v = 0; v < c.mesh.numVertices(); ++v) {
+    std::vector<double> skeleton(nb, 0.0), hybrid(nb, 0.0);
+    double sum = 0;
+    for (int k = 0; k < c.weights.influences(); ++k)
+      if (c.weights.joints(v, k) >= 0) skeleton[c.weights.joints(v, k)] += c.weights.weights(v, k), sum += c.weights.weights(v, k);
+    std::vector<int> musclesHere;
+    for (int k = 0; k < w.influences(); ++k) {
+      const int j = w.joints(v, k);
+      if (j < 0) continue;
+      if (j < nb) hybrid[j] += w.weights(v, k);
+      else musclesHere.push_back(rig.jointMuscle()[j - nb]);
+    }
+    if (musclesHere.empty()) continue;
+    for (int b = 0; b < nb; ++b) {
+      bool spanned = false;
+      for (int m : musclesHere) spanned = spanned || spans(m, b);
+      if (spanned || skeleton[b] <= 0) continue;
+      ++checked;
+      EXPECT_NEAR(hybrid[b], skeleton[b] / sum, 1e-9) << "vertex " << v << " bone " << sk.bones[b].name;
+      kept += std::abs(hybrid[b] - skeleton[b] / sum) < 1e-9;
+    }
+  }
+  std::printf("muscle vertices with weight on a bone no muscle there spans: %d, weight kept exactly: %d\n", checked, kept);
+  EXPECT_GT(checked, 100) << "the arm's muscles reach skin the skeleton blends with other bones";
 }

@@ -9,6 +9,7 @@
 #include <functional>
 #include <random>
 
+#include "test_support.h"
 #include "myoskin/errors.h"
 #include "myoskin/skinning.h"
 #include "myoskin/synthetic_character.h"
@@ -69,14 +70,6 @@ Points reference(const Points& rest, const SkinWeights& w, const std::vector<Mat
   return out;
 }
 
-std::string errorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
 
 }  // namespace
 
@@ -154,45 +147,45 @@ TEST(Skinner, BadInputNamesTheVertexAndSlot) {
   SkinWeights w = s.weights;
   w.weights(17, 2) = -0.5;
   w.joints(17, 2) = 1;
-  EXPECT_NE(errorOf([&] { Skinner(s.rest, w, 6); }).find("vertex 17 slot 2 has a negative weight"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { Skinner(s.rest, w, 6); }).find("vertex 17 slot 2 has a negative weight"), std::string::npos);
   w = s.weights;
   w.weights(23, 1) = std::nan("");
-  EXPECT_NE(errorOf([&] { Skinner(s.rest, w, 6); }).find("vertex 23 slot 1 has a NaN"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { Skinner(s.rest, w, 6); }).find("vertex 23 slot 1 has a NaN"), std::string::npos);
   w = s.weights;
   w.joints(31, 3) = 6;
-  EXPECT_NE(errorOf([&] { Skinner(s.rest, w, 6); }).find("vertex 31 slot 3 uses joint 6, outside 0..5"),
+  EXPECT_NE(test::inputErrorOf([&] { Skinner(s.rest, w, 6); }).find("vertex 31 slot 3 uses joint 6, outside 0..5"),
             std::string::npos);
   w = s.weights;
   w.joints(31, 3) = -2;
-  EXPECT_NE(errorOf([&] { Skinner(s.rest, w, 6); }).find("uses joint -2"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { Skinner(s.rest, w, 6); }).find("uses joint -2"), std::string::npos);
   w = s.weights;
   w.weights.conservativeResize(49, 4);
-  EXPECT_NE(errorOf([&] { Skinner(s.rest, w, 6); }).find("weights are 49 by 4"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { Skinner(s.rest, w, 6); }).find("weights are 49 by 4"), std::string::npos);
   w = s.weights;
   w.joints.conservativeResize(49, 4);
   w.weights.conservativeResize(49, 4);
-  EXPECT_NE(errorOf([&] { Skinner(s.rest, w, 6); }).find("49 weight rows for 50 vertices"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { Skinner(s.rest, w, 6); }).find("49 weight rows for 50 vertices"), std::string::npos);
   Points nanRest = s.rest;
   nanRest(4, 1) = INFINITY;
-  EXPECT_NE(errorOf([&] { Skinner(nanRest, s.weights, 6); }).find("vertex 4"), std::string::npos);
-  EXPECT_NE(errorOf([&] { Skinner(s.rest, s.weights, 0); }).find("at least one joint"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { Skinner(nanRest, s.weights, 6); }).find("vertex 4"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { Skinner(s.rest, s.weights, 0); }).find("at least one joint"), std::string::npos);
   // Strict mode: rows must sum to 1.
   SkinWeights unit = s.weights;
   for (int v = 0; v < 50; ++v) unit.weights.row(v) /= unit.weights.row(v).sum();
   SkinnerOptions strict;
   strict.sumTolerance = 1e-6;
-  EXPECT_EQ(errorOf([&] { Skinner(s.rest, unit, 6, strict); }), "");
+  EXPECT_EQ(test::inputErrorOf([&] { Skinner(s.rest, unit, 6, strict); }), "");
   unit.weights(12, 0) += 0.25;
-  EXPECT_NE(errorOf([&] { Skinner(s.rest, unit, 6, strict); }).find("vertex 12 weights sum to 1.25"),
+  EXPECT_NE(test::inputErrorOf([&] { Skinner(s.rest, unit, 6, strict); }).find("vertex 12 weights sum to 1.25"),
             std::string::npos);
-  EXPECT_EQ(errorOf([&] { Skinner(s.rest, unit, 6); }), "");  // Blender semantics: normalised
+  EXPECT_EQ(test::inputErrorOf([&] { Skinner(s.rest, unit, 6); }), "");  // Blender semantics: normalised
   const Skinner skinner(s.rest, s.weights, 6);
   Points out;
   std::vector<Mat4> few(s.transforms.begin(), s.transforms.begin() + 5);
-  EXPECT_NE(errorOf([&] { skinner.deform(few, out); }).find("5 transforms for 6 joints"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { skinner.deform(few, out); }).find("5 transforms for 6 joints"), std::string::npos);
   std::vector<Mat4> bad = s.transforms;
   bad[3](1, 2) = std::nan("");
-  EXPECT_NE(errorOf([&] { skinner.deform(bad, out); }).find("transform 3"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { skinner.deform(bad, out); }).find("transform 3"), std::string::npos);
 }
 
 TEST(SkeletonTransforms, PoseTimesInverseRestAndBadPoses) {
@@ -207,10 +200,10 @@ TEST(SkeletonTransforms, PoseTimesInverseRestAndBadPoses) {
   for (int b = 0; b < sk.numBones(); ++b) EXPECT_LT((t[b] * sk.bones[b].rest - pose.matrices[b]).norm(), 1e-12);
   Pose shortPose = pose;
   shortPose.matrices.pop_back();
-  EXPECT_NE(errorOf([&] { skeletonTransforms(sk, shortPose, t); }).find("matrices for"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { skeletonTransforms(sk, shortPose, t); }).find("matrices for"), std::string::npos);
   Pose nanPose = pose;
   nanPose.matrices[1](0, 0) = std::nan("");
-  EXPECT_NE(errorOf([&] { skeletonTransforms(sk, nanPose, t); }).find("bone 1"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { skeletonTransforms(sk, nanPose, t); }).find("bone 1"), std::string::npos);
 }
 
 // ============================================================================
@@ -252,11 +245,11 @@ TEST(SkinQuality, RegionVolumesAddUpAndFollowRigidMotion) {
   EXPECT_NEAR(b2.maxCoeff(), 1e-3, 1e-12);
   for (double change : regionVolumeChange(c.mesh.vertices, pushed, c.mesh.triangles, labels, nb))
     EXPECT_GT(change, 0.0);
-  EXPECT_NE(errorOf([&] { regionVolumes(c.mesh.vertices, c.mesh.triangles, IndexVector::Zero(3), 1); }).find("3 labels"),
+  EXPECT_NE(test::inputErrorOf([&] { regionVolumes(c.mesh.vertices, c.mesh.triangles, IndexVector::Zero(3), 1); }).find("3 labels"),
             std::string::npos);
   IndexVector badLabel = all;
   badLabel[9] = 4;
-  EXPECT_NE(errorOf([&] { regionVolumes(c.mesh.vertices, c.mesh.triangles, badLabel, 2); }).find("vertex 9"),
+  EXPECT_NE(test::inputErrorOf([&] { regionVolumes(c.mesh.vertices, c.mesh.triangles, badLabel, 2); }).find("vertex 9"),
             std::string::npos);
 }
 
@@ -284,15 +277,15 @@ TEST(PointCache, WriteReadRoundTripAndBadFiles) {
   for (int f = 0; f < 3; ++f) EXPECT_EQ((c.frames[f] - frames[f]).cwiseAbs().maxCoeff(), 0.0f);
   // Truncated file, wrong signature, wrong frame size, NaN frame, missing file.
   std::filesystem::resize_file(path, 32 + 7 * 12 + 5);
-  EXPECT_NE(errorOf([&] { readPC2(path); }).find("header promises"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { readPC2(path); }).find("header promises"), std::string::npos);
   { std::ofstream(path, std::ios::binary) << "NOTACACHE000000000000000000000000000"; }
-  EXPECT_NE(errorOf([&] { readPC2(path); }).find("not a PC2 file"), std::string::npos);
-  EXPECT_NE(errorOf([&] { readPC2((dir / "missing.pc2").string()); }).find("cannot open"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { readPC2(path); }).find("not a PC2 file"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { readPC2((dir / "missing.pc2").string()); }).find("cannot open"), std::string::npos);
   PC2Writer w(path, 7);
-  EXPECT_NE(errorOf([&] { w.writeFrame(PointsF(PointsF::Zero(6, 3))); }).find("has 6 points"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { w.writeFrame(PointsF(PointsF::Zero(6, 3))); }).find("has 6 points"), std::string::npos);
   PointsF nan = frames[0];
   nan(2, 1) = std::nanf("");
-  EXPECT_NE(errorOf([&] { w.writeFrame(nan); }).find("point 2"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { w.writeFrame(nan); }).find("point 2"), std::string::npos);
   w.writeFrame(frames[1]);
   w.close();
   EXPECT_EQ(readPC2(path).frames.size(), 1u);

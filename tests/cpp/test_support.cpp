@@ -2,6 +2,8 @@
 
 #include <filesystem>
 
+#include "myoskin/errors.h"
+
 namespace myoskin::test {
 
 std::string sharedPath(const std::string& relative) {
@@ -11,5 +13,14 @@ std::string sharedPath(const std::string& relative) {
 }
 
 bool exists(const std::string& path) { return std::filesystem::exists(path); }
+
+std::string inputErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
 
 }  // namespace myoskin::test

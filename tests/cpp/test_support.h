@@ -2,6 +2,7 @@
 #pragma once
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <string>
 
 namespace myoskin::test {
@@ -10,6 +11,8 @@ namespace myoskin::test {
 std::string sharedPath(const std::string& relative);
 // True if the file exists.
 bool exists(const std::string& path);
+// The message of the InputError that f throws, or "" when it throws none.
+std::string inputErrorOf(const std::function<void()>& f);
 
 }  // namespace myoskin::test
 

@@ -28,7 +28,10 @@ namespace myoskin {
 
 struct MuscleRigOptions {
   int jointsOverride = 0;        // > 0: use this many joints per muscle instead of Muscle::joints
-  double restTolerance = 1e-9;   // relative; a pose this close to rest gives bind matrices exactly
+  // Turn the carried frames about the path by a linearly growing share of the twist between the frame
+  // carried to the insertion and the frame the insertion bone carries there (like twist bones), so that
+  // a forearm's roll reaches the skin on the muscle; false: frames anchored to the origin bone only.
+  bool distributeTwist = true;
 };
 
 // ============================================================================

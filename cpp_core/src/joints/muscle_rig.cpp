@@ -66,6 +66,8 @@ struct MuscleModel {
   double restLength = 0.0;
   Vec3 tangentLocal;                 // rest start tangent in the origin bone's frame
   Mat3 frameLocal;                   // rest start frame in the origin bone's frame
+  Vec3 endTangentLocal;              // rest end tangent in the insertion bone's frame
+  Mat3 endFrameLocal;                // rest end frame in the insertion bone's frame
   int stations = 0, jointStride = 0, joints = 0;  // joint k sits on station (2k + 1) * jointStride
   std::vector<Vec3> jointOffset;     // #joints rest root-curve point in its station's frame
   joints::BulgeProfile bulge;
@@ -90,6 +92,10 @@ struct MuscleRig::Impl {
   void posedPath(int m, const Pose& pose, paths::ActionPath& path) const;
   // Start frame of the posed path (rest frame carried by the origin bone, turned onto the tangent).
   Mat3 startFrame(int m, const Pose& pose, const paths::ActionPath& path) const;
+  // Twist (radians about the end tangent) from the frame carried to the path's end to the frame the
+  // insertion bone carries there; distributed linearly along the path.
+  double endTwist(int m, const Pose& pose, const paths::ActionPath& path, const Mat3& F0) const;
+  bool distributeTwist = true;
 };
 
 void MuscleRig::Impl::posedPath(int m, const Pose& pose, paths::ActionPath& path) const {
@@ -114,16 +120,33 @@ void MuscleRig::Impl::posedPath(int m, const Pose& pose, paths::ActionPath& path
   }
 }
 
+// The frame a bone carries onto a path tangent: its rest frame (local to the bone) turned by the least
+// rotation that takes the rest tangent to the posed one (both in the bone's frame).
+Mat3 boneCarriedFrame(const Mat4& boneMatrix, const Vec3& restTangentLocal, const Mat3& restFrameLocal, Vec3 t,
+                      bool degenerate) {
+  const Mat3 R = rotationOf(boneMatrix);
+  if (degenerate) t = R * restTangentLocal;  // origin on the insertion: keep the rest direction
+  const Vec3 tLocal = R.transpose() * t;
+  const Mat3 turn = Eigen::Quaterniond::FromTwoVectors(restTangentLocal, tLocal).toRotationMatrix();
+  const Mat3 F = R * turn * restFrameLocal;
+  return frameFromY(t, F.col(0));  // re-orthonormalise exactly onto the tangent
+}
+
 Mat3 MuscleRig::Impl::startFrame(int m, const Pose& pose, const paths::ActionPath& path) const {
   const MuscleModel& mm = models[m];
-  const Mat3 R = rotationOf(pose.matrices[mm.originBone]);
   Vec3 p, t;
   paths::pointAt(path, 0.0, p, t);
-  if (path.length < 1e-12) t = R * mm.tangentLocal;  // origin on the insertion: keep the rest direction
-  const Vec3 tLocal = R.transpose() * t;
-  const Mat3 turn = Eigen::Quaterniond::FromTwoVectors(mm.tangentLocal, tLocal).toRotationMatrix();
-  Mat3 F = R * turn * mm.frameLocal;
-  return frameFromY(t, F.col(0));  // re-orthonormalise exactly onto the tangent
+  return boneCarriedFrame(pose.matrices[mm.originBone], mm.tangentLocal, mm.frameLocal, t, path.length < 1e-12);
+}
+
+double MuscleRig::Impl::endTwist(int m, const Pose& pose, const paths::ActionPath& path, const Mat3& F0) const {
+  const MuscleModel& mm = models[m];
+  if (!distributeTwist || path.length < 1e-12) return 0.0;
+  const Mat3 carried = paths::frameAt(path, F0, path.length);
+  const Mat3 target = boneCarriedFrame(pose.matrices[mm.insertionBone], mm.endTangentLocal, mm.endFrameLocal,
+                                       carried.col(1), false);
+  const Vec3 a = carried.col(0), b = target.col(0);
+  return std::atan2(a.cross(b).dot(carried.col(1)), a.dot(b));
 }
 
 // ============================================================================
@@ -134,6 +157,7 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
   validateSkeleton(skeleton);
   validateMuscles(muscles);
   auto impl = std::make_shared<Impl>();
+  impl->distributeTwist = options.distributeTwist;
   impl->skeleton = skeleton;
   impl->muscles = muscles;
   const Pose rest = restPose(skeleton);
@@ -207,6 +231,12 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
     Mat3 F0 = frameFromY(t0, Rb.col(0));
     mr.frameLocal = Rb.transpose() * F0;
     F0 = impl->startFrame(static_cast<int>(m), rest, path);
+    {
+      const Mat3 Fe = paths::frameAt(path, F0, path.length);
+      const Mat3 Ri = rotationOf(rest.matrices[mr.insertionBone]);
+      mr.endTangentLocal = Ri.transpose() * Fe.col(1);
+      mr.endFrameLocal = Ri.transpose() * Fe;
+    }
 
     const int S = mr.stations;
     std::vector<double> sig(S);
@@ -343,6 +373,13 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     paths::ActionPath path;
     im.posedPath(m, pose, path);
     const Mat3 F0 = im.startFrame(m, pose, path);
+    const double twist = im.endTwist(m, pose, path, F0);
+    // Carried frames turned about their tangent by the share of the end twist at their arc length.
+    auto twisted = [&](int n) {
+      if (twist == 0.0) return;
+      for (int i = 0; i < n; ++i)
+        F[i] = Eigen::AngleAxisd(twist * sig[i] / path.length, F[i].col(1)).toRotationMatrix() * F[i];
+    };
     const double lambda = std::clamp(path.length / mm.restLength, kMinStretch, kMaxStretch);
     const double mu = joints::bulgeMu(mm.bulge, lambda);
     state.length[m] = path.length;
@@ -353,6 +390,7 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     // Joints: frames at their stations only.
     for (int k = 0; k < mm.joints; ++k) sig[k] = path.length * ((2 * k + 1) * mm.jointStride) / (S - 1);
     paths::framesAt(path, F0, sig, mm.joints, F, P);
+    twisted(mm.joints);
     for (int k = 0; k < mm.joints; ++k) {
       const int j = (2 * k + 1) * mm.jointStride;
       const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);
@@ -370,6 +408,7 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     // Surface: every station, then each vertex blends its two stations.
     for (int j = 0; j < S; ++j) sig[j] = path.length * j / (S - 1);
     paths::framesAt(path, F0, sig, S, F, P);
+    twisted(S);
     for (int j = 0; j < S; ++j) {
       const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);
       F[j].col(0) *= s;

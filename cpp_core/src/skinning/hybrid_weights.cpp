@@ -179,6 +179,20 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
   // ==========================================================================
   // Per vertex: muscle share split between joints, skeleton fills the rest, strongest maxInfluences kept
   // ==========================================================================
+  // A muscle takes its weight only from the skeleton weights of the bones it spans (the chain from its
+  // origin bone to its insertion bone): skin that the skeleton blends with other bones (near a joint the
+  // muscle does not cross) keeps that blend.
+  const Skeleton& skeleton = rig.skeleton();
+  std::vector<std::vector<char>> spans(rig.numMuscles(), std::vector<char>(nb, 0));
+  for (int m = 0; m < rig.numMuscles(); ++m) {
+    const int o = skeleton.find(rig.muscles()[m].origin.bone), i = skeleton.find(rig.muscles()[m].insertion.bone);
+    std::vector<char> aboveO(nb, 0);
+    for (int b = o; b >= 0; b = skeleton.bones[b].parent) aboveO[b] = 1;
+    int common = i;
+    while (common >= 0 && !aboveO[common]) spans[m][common] = 1, common = skeleton.bones[common].parent;
+    for (int b = o; b >= 0 && b != common; b = skeleton.bones[b].parent) spans[m][b] = 1;
+    if (common >= 0) spans[m][common] = 1;
+  }
   std::vector<std::vector<Vec3>> jointLine(rig.numMuscles());
   for (int m = 0; m < rig.numMuscles(); ++m)
     for (int k = 0; k < rig.jointCount(m); ++k)
@@ -189,30 +203,35 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
   out.weights = WeightMatrix::Zero(nv, K);
   tbb::parallel_for(tbb::blocked_range<int>(0, nv, 1024), [&](const tbb::blocked_range<int>& r) {
     std::vector<std::pair<double, int>> row;
+    std::vector<double> muscleShare;
     for (int v = r.begin(); v != r.end(); ++v) {
       double skeletonSum = 0.0;
       for (int k = 0; k < skeletonWeights.influences(); ++k)
         if (skeletonWeights.joints(v, k) >= 0) skeletonSum += skeletonWeights.weights(v, k);
       if (skeletonSum <= kRestWeightThreshold) continue;
-      double keep = 1.0, total = 0.0;
-      for (const MuscleEntry& e : entries[v]) {
-        keep *= 1.0 - e.weight;
-        total += e.weight;
-      }
-      const double muscleWeight = 1.0 - keep;
+      // Each bone's (normalised) weight w_b gives up the fraction 1 - prod(1 - e_m) over the muscles m
+      // spanning it, shared among those muscles in proportion to e_m.
       row.clear();
+      muscleShare.assign(entries[v].size(), 0.0);
       for (int k = 0; k < skeletonWeights.influences(); ++k) {
         const int b = skeletonWeights.joints(v, k);
-        const double w = skeletonWeights.weights(v, k);
+        const double w = skeletonWeights.weights(v, k) / skeletonSum;
         if (b < 0 || w <= 0.0) continue;
+        double keep = 1.0, claim = 0.0;
+        for (const MuscleEntry& e : entries[v])
+          if (spans[e.muscle][b]) keep *= 1.0 - e.weight, claim += e.weight;
+        for (size_t q = 0; q < entries[v].size(); ++q)
+          if (spans[entries[v][q].muscle][b]) muscleShare[q] += w * (1.0 - keep) * entries[v][q].weight / claim;
         bool merged = false;
         for (auto& [rw, rj] : row)
-          if (rj == b) rw += w / skeletonSum * (1.0 - muscleWeight), merged = true;
-        if (!merged) row.push_back({w / skeletonSum * (1.0 - muscleWeight), b});
+          if (rj == b) rw += w * keep, merged = true;
+        if (!merged) row.push_back({w * keep, b});
       }
       const Vec3 p = skin.vertices.row(v).transpose();
-      for (const MuscleEntry& e : entries[v]) {
-        const double share = muscleWeight * e.weight / total;
+      for (size_t q = 0; q < entries[v].size(); ++q) {
+        const MuscleEntry& e = entries[v][q];
+        const double share = muscleShare[q];
+        if (share <= 0.0) continue;
         const int first = nb + rig.jointOffset(e.muscle);
         int segment;
         double t;
