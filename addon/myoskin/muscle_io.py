@@ -197,8 +197,9 @@ def make_locator(arm_obj, item, end, position):
 
 
 def update_wrap_display(arm_obj, item):
-    """The wrap display empty: a sphere of the wrap radius at the wrap bone's head (joint wrap), a circle
-    of the radius round the bone's middle (bone wrap; its arrow-like X axis flips with the side); none."""
+    """The wrap display empty: a sphere of the wrap radius at the wrap bone's head (joint wrap); a cone of
+    that base radius round the bone's middle, pointing along the bone for side +1 and back for -1 (bone
+    wrap, right-hand rule); none otherwise."""
     display = item.wrap_locator
     if item.wrap_type == 'none' or item.wrap_bone not in arm_obj.data.bones:
         if display is not None and display.name in bpy.data.objects:
@@ -220,11 +221,10 @@ def update_wrap_display(arm_obj, item):
     if item.wrap_type == 'joint':
         display.empty_display_type = 'SPHERE'
         display.matrix_basis = bone.matrix_local
-    else:  # a circle lies in its local XY plane: turn it so the bone's Y is its normal
-        display.empty_display_type = 'CIRCLE'
-        side = 1.0 if item.wrap_side == '1' else -1.0
-        display.matrix_basis = (bone.matrix_local @ Matrix.Translation((0.0, 0.5 * bone.length, 0.0))
-                                @ Matrix.Rotation(np.pi / 2, 4, 'X') @ Matrix.Diagonal((side, 1.0, 1.0, 1.0)))
+    else:  # a cone round the bone's middle: base radius = the cylinder's, pointing along +-bone Y = the side
+        display.empty_display_type = 'CONE'
+        flip = Matrix.Identity(4) if item.wrap_side == '1' else Matrix.Rotation(np.pi, 4, 'X')
+        display.matrix_basis = bone.matrix_local @ Matrix.Translation((0.0, 0.5 * bone.length, 0.0)) @ flip
     return display
 
 

@@ -332,8 +332,13 @@ def test_wrap_settings_and_display():
     assert (m.wrap_type, m.wrap_bone, abs(m.wrap_radius - 0.04) < 1e-9) == ('joint', 'forearm', True)
     item.wrap_type = 'bone'
     item.wrap_bone = "upper_arm"
+    bpy.context.view_layer.update()
+    bone_y = np.array(arm.data.bones["upper_arm"].matrix_local)[:3, 1]
+    cone_y = lambda: np.array(item.wrap_locator.matrix_world)[:3, 1]  # noqa: E731
+    assert item.wrap_locator.empty_display_type == 'CONE' and np.dot(cone_y(), bone_y) > 0.99
     item.wrap_side = '-1'
-    assert item.wrap_locator.empty_display_type == 'CIRCLE'
+    bpy.context.view_layer.update()
+    assert np.dot(cone_y(), bone_y) < -0.99  # the display shows the side
     m = module("muscle_io").item_to_core(arm, item)
     assert (m.wrap_type, m.wrap_bone, m.wrap_side) == ('bone', 'upper_arm', -1)
     item.bulge, item.joints = 2.5, 6
