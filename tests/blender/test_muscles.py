@@ -117,6 +117,26 @@ def test_extract_on_generated_arm():
     assert len(core().muscles_from_json(state.muscles_text.as_string())) == len(state.muscles)
 
 
+def test_extract_with_the_rig_moved_in_the_world():
+    """Muscles live in the armature's space: a moved/rotated rig gives the same muscles, placed with it."""
+    arm, skin = add_arm()
+    arm.location = (0.4, -1.0, 0.3)
+    arm.rotation_euler = (0.2, 0.0, 0.9)
+    bpy.context.view_layer.update()
+    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
+    state = arm.myoskin
+    direct, _ = core().extract_muscles(core().make_synthetic_arm(seed=1)[0])
+    assert len(state.muscles) == len(direct)
+    to_world = np.array(arm.matrix_world)
+    for item, m in zip(state.muscles, direct):
+        world = np.array(item.surface.matrix_world)
+        co = mesh_co(item.surface) @ world[:3, :3].T + world[:3, 3]
+        expected = np.asarray(m.surface_vertices) @ to_world[:3, :3].T + to_world[:3, 3]
+        assert np.abs(co - expected).max() < 1e-5
+        placed = np.array(item.origin_locator.matrix_world.translation)
+        assert np.abs(placed - (to_world[:3, :3] @ np.asarray(m.origin) + to_world[:3, 3])).max() < 1e-5
+
+
 def test_extract_options_and_limits():
     arm, skin, state = extracted_arm()
     everywhere = len(state.muscles)
