@@ -14,7 +14,7 @@ BUILD="${MYOSKIN_BUILD_DIR:-$ROOT/build}"
 JOBS="${MYOSKIN_JOBS:-$(nproc)}"
 PACKAGES=(g++ cmake make libcgal-dev libopenmesh-dev libglm-dev libeigen3-dev pybind11-dev python3-dev
           libtinygltf-dev nlohmann-json3-dev libtbb-dev libgtest-dev libbenchmark-dev python3-numpy
-          python3-pytest blender)
+          python3-pytest blender xvfb)
 
 log() { printf '\033[1mmyoskin:\033[0m %s\n' "$*"; }
 

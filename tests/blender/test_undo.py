@@ -1,0 +1,44 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Blender tier: Undo and Redo after Bind in a real window (background Blender has no window for
+ed.undo): a windowed Blender under xvfb-run runs tests/blender/gui/undo_after_bind.py. Skips with a message
+when xvfb-run is missing (Debian package xvfb, installed by ./myoskin.sh setup).
+
+    BLENDER_USER_SCRIPTS=build/blender_scripts MYOSKIN_SOURCE_DIR=$PWD \
+    blender -b --factory-startup --python-exit-code 1 --addons myoskin --python tests/blender/test_undo.py
+"""
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+
+import bpy
+
+SOURCE = os.environ.get("MYOSKIN_SOURCE_DIR", os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
+sys.path.insert(0, os.path.join(SOURCE, "tests", "blender"))
+import blender_test_runner as runner  # noqa: E402
+
+
+def test_undo_and_redo_after_bind_in_a_window():
+    if shutil.which("xvfb-run") is None:
+        runner.skip("needs xvfb-run (apt-get install xvfb) to give Blender a window for Undo")
+    out = os.path.join(tempfile.mkdtemp(prefix="myoskin_test_undo_"), "seen.json")
+    script = os.path.join(SOURCE, "tests", "blender", "gui", "undo_after_bind.py")
+    cmd = ["xvfb-run", "-a", "-s", "-screen 0 1280x800x24", bpy.app.binary_path, "--factory-startup",
+           "--addons", "myoskin", "--python", script, "--", out]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=dict(os.environ))
+    assert os.path.isfile(out), f"the windowed Blender wrote nothing (exit {done.returncode}):\n" \
+                                f"{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
+    with open(out, encoding="utf-8") as f:
+        seen = json.load(f)
+    assert "error" not in seen, seen.get("error")
+    assert seen["bound"] and seen["bones_bound"] > seen["bones_before"], seen
+    assert seen["undo"] == ["FINISHED"] and not seen["bound_after_undo"], seen
+    assert seen["bones_after_undo"] == seen["bones_before"], seen
+    assert seen["after_undo"], "undo after bind did not give back the original weights"
+    assert seen["redo"] == ["FINISHED"] and seen["bound_after_redo"], seen
+    assert seen["bones_after_redo"] == seen["bones_bound"], seen
+
+
+runner.run()
