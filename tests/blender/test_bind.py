@@ -446,6 +446,19 @@ def test_bind_bad_input():
     before = weights_of(skin)
     assert "disabled" in operator_error(bpy.ops.myoskin.bind)
     assert weights_of(skin) == before and not module("rig_io").muscle_bone_names(skin.parent)
+    # a failure half-way (here: a weight row count that does not fit the skin) leaves the rig as it was
+    for m in skin.parent.myoskin.muscles:
+        m["enabled"] = True
+    rig_ops = module("operators.rig")
+    real = rig_ops.hybrid_weights
+    rig_ops.hybrid_weights = lambda core, character, rig: tuple(a[:-1] for a in real(core, character, rig))
+    try:
+        text = operator_error(bpy.ops.myoskin.bind)
+    finally:
+        rig_ops.hybrid_weights = real
+    assert "weight rows" in text, text
+    assert weights_of(skin) == before and not module("rig_io").muscle_bone_names(skin.parent)
+    assert not skin.parent.myoskin.bound and "myoskin_original_weights" not in skin
 
 
 def test_deleted_muscle_object_and_renamed_bones_after_bind():

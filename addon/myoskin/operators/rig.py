@@ -101,8 +101,13 @@ def bind(context, skin, arm):
     joints, weights = hybrid_weights(core, character, rig)
     backup_weights(skin)
     names = list(character.bone_names)
-    rig_io.create_rig_bones(arm, rig, names)
-    rig_io.write_combined_weights(skin, names + list(rig.joint_names), joints, weights)
+    try:
+        rig_io.create_rig_bones(arm, rig, names)
+        rig_io.write_combined_weights(skin, names + list(rig.joint_names), joints, weights)
+    except Exception:  # leave the rig as it was: no joint bones, the original weights
+        rig_io.remove_muscle_bones(arm)
+        restore_weights(skin)
+        raise
     added = armature_modifier(skin, arm) is None
     if added:
         mod = skin.modifiers.new("Armature", 'ARMATURE')
