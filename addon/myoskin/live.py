@@ -18,6 +18,7 @@ State: nothing is held between calls but a cache keyed by armature name and the 
 after reload or undo); objects are looked up in bpy.data on every call. Without the add-on the file opens
 and shows the joints as last written (or as baked to the Action).
 """
+import hashlib
 import json
 
 import bpy
@@ -34,10 +35,10 @@ stats = {"predicted": 0, "written": 0}  # frames written from the F-curve predic
 class LiveRig:
     """A MuscleRig built from an armature's bind record, plus index arrays into its pose bones."""
 
-    def __init__(self, arm_obj, record_text):
+    def __init__(self, arm_obj, record_text, key):
         core = core_loader.core()
         record = json.loads(record_text)
-        self.key = record_text
+        self.key = key
         self.bone_names = record["bone_names"]
         self.joint_names = record["joint_names"]
         self.character = skeleton_character(record)
@@ -93,25 +94,37 @@ def apply_settings_to_bound(arm_obj):
             np.abs(np.asarray(rig.bind_matrices) - np.asarray(old.bind_matrices)).max() > 1e-9:
         return False
     record["muscles"] = core.muscles_to_json(muscles)
-    text.from_string(json.dumps(record, indent=1))
+    write_bind_record(arm_obj, record)
     forget(arm_obj.name)
     update_armature(arm_obj, force=True)
     return True
 
 
-def bind_record_text(arm_obj):
-    text = arm_obj.myoskin.bind_text
-    return text.as_string() if text is not None else ""
+RECORD_KEY = "myoskin_key"  # ID property on the bind record Text: a digest of its content
+
+
+def write_bind_record(arm_obj, record):
+    """Store the bind record (a dict) in the armature's "<armature>.bind.json" Text, with its digest."""
+    content = json.dumps(record, indent=1)
+    state = arm_obj.myoskin
+    text = state.bind_text or bpy.data.texts.get(f"{arm_obj.name}.bind.json") or \
+        bpy.data.texts.new(f"{arm_obj.name}.bind.json")
+    text.from_string(content)
+    text[RECORD_KEY] = hashlib.sha1(content.encode("utf-8")).hexdigest()
+    state.bind_text = text
+    return text
 
 
 def live_rig(arm_obj):
-    """The cached LiveRig of a bound armature (rebuilt when its bind record changed)."""
-    record = bind_record_text(arm_obj)
-    if not record:
+    """The cached LiveRig of a bound armature (rebuilt when its bind record's digest changed, e.g. after a
+    new bind, an undo or a reload; the text itself is only read then)."""
+    text = arm_obj.myoskin.bind_text
+    if text is None:
         raise ValueError(f"'{arm_obj.name}' has no bind record: bind again")
+    key = text.get(RECORD_KEY) or text.as_string()
     cached = _cache.get(arm_obj.name)
-    if cached is None or cached.key != record:
-        cached = LiveRig(arm_obj, record)
+    if cached is None or cached.key != key:
+        cached = LiveRig(arm_obj, text.as_string(), key)
         _cache[arm_obj.name] = cached
     return cached
 
@@ -125,7 +138,7 @@ def evaluated_pose(arm_obj, live, depsgraph=None):
     return flat.reshape(-1, 4, 4).transpose(0, 2, 1)[live.skeleton_indices(pose_bones)].astype(np.float64)
 
 
-def muscles_visible(arm_obj, view_layer=None):
+def muscles_visible(arm_obj):
     coll = arm_obj.myoskin.collection
     if coll is None or coll.hide_viewport:
         return False

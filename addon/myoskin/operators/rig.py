@@ -72,12 +72,6 @@ def hybrid_weights(core, character, rig):
     return np.asarray(result[0]), np.asarray(result[1])
 
 
-def _text(name, content):
-    text = bpy.data.texts.get(name) or bpy.data.texts.new(name)
-    text.from_string(content)
-    return text
-
-
 def armature_modifier(skin, arm):
     for mod in skin.modifiers:
         if mod.type == 'ARMATURE' and mod.object == arm:
@@ -124,7 +118,7 @@ def bind(context, skin, arm):
         "joint_names": list(rig.joint_names), "muscles": core.muscles_to_json(muscles),
         "surfaces": [surfaces.get(m.name, "") for m in muscles],
     }
-    state.bind_text = _text(f"{arm.name}.bind.json", json.dumps(record, indent=1))
+    live.write_bind_record(arm, record)
     state.skin = skin
     state.bound, state.dirty = True, False
     context.scene.render.use_lock_interface = True  # handlers run on the render thread during F12
