@@ -189,6 +189,8 @@ def character_from_blender(mesh_obj, armature_obj=None, name=None):
     armature_obj = armature_obj or find_armature(mesh_obj)
     if armature_obj is None or armature_obj.type != 'ARMATURE':
         raise ValueError(f"character_from_blender: mesh '{mesh_obj.name}' has no armature")
+    if mesh_obj.mode == 'EDIT':  # edit-mode changes live in the BMesh until synced
+        mesh_obj.update_from_editmode()
     mesh = mesh_obj.data
     bones = armature_obj.data.bones
     if len(bones) == 0:

@@ -278,6 +278,16 @@ def test_add_muscle_from_faces_and_group():
     group.add(np.flatnonzero(region).tolist(), 1.0, 'REPLACE')
     assert bpy.ops.myoskin.add_muscle_from_region(source='GROUP', vertex_group="mark") == {'FINISHED'}
     assert len(state.muscles) == n + 1
+    # in Edit Mode, as an artist marks faces: the selection is read from the edit mesh
+    bpy.context.view_layer.objects.active = skin
+    bpy.ops.object.mode_set(mode='EDIT')
+    bpy.ops.mesh.select_all(action='DESELECT')
+    bpy.ops.object.mode_set(mode='OBJECT')
+    skin.data.polygons.foreach_set("select", sel)
+    bpy.ops.object.mode_set(mode='EDIT')
+    assert bpy.ops.myoskin.add_muscle_from_region(source='FACES') == {'FINISHED'}
+    bpy.ops.object.mode_set(mode='OBJECT')
+    assert len(state.muscles) == n + 2
     # nothing marked: clear errors
     skin.data.polygons.foreach_set("select", np.zeros(len(skin.data.polygons), dtype=bool))
     assert "No faces selected" in operator_error(bpy.ops.myoskin.add_muscle_from_region, source='FACES')
