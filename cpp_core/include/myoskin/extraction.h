@@ -63,6 +63,10 @@ struct ExtractionOptions {
   std::vector<std::vector<char>> forcedRegions;  // one #V mask per forced muscle: the dominant bump inside
                                                  // the region is extracted even below significance
   double forcedMinProtrusion = 0.0005;         // metres: bumps weaker than this are not forced either
+  double weakFraction = 1.0;                   // hysteresis: bumps down to this share of the significance
+                                               // threshold are linked too, so a muscle whose bump fades
+                                               // towards its tendons is followed further; a muscle needs
+                                               // link.minSections significant sections. 1 = no hysteresis
   double minConfidence = 0.6;                  // drop muscles below this confidence (forced ones are kept)
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
 };
@@ -130,6 +134,7 @@ struct MuscleChain {
   int bone = -1;                 // bone of the plane with the most links
   std::vector<ChainLink> links;
   int realSections = 0;          // links with bump >= 0
+  int strongSections = 0;        // real links whose bump is significant (significance >= 1)
   double confidence = 0.0;       // in [0, 1]
   bool forced = false;
 };
@@ -142,7 +147,7 @@ struct MuscleChain {
 // against a chain that continued (a split), or a chain that ends while its last bump passes the test
 // against a bump another chain took (a merge), gets a transition section — the average ellipse of the
 // two, placed in the plane of the shared-side section — so both branches meet at the junction.
-// Returns every chain (also short ones; filter with realSections >= minSections), sorted by family,
+// Returns every chain (also short ones; filter with strongSections >= minSections), sorted by family,
 // familyIndex, then first plane order, then angle.
 std::vector<MuscleChain> linkBumps(const std::vector<SectionBumps>& sections, const LinkOptions& options = {},
                                    int* branchCount = nullptr);

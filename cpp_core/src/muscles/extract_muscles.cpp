@@ -111,7 +111,14 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     }
     try {
       const SectionTriangulation tri = triangulateSection(prof.polygon);
-      std::vector<Bump> bumps = findBumps(prof.polygon, options.bumps, &tri);
+      // Hysteresis: bumps down to weakFraction of the threshold, significance still relative to the threshold.
+      const double weak = std::clamp(options.weakFraction, 1e-3, 1.0);
+      BumpOptions low = options.bumps;
+      low.minProtrusion *= weak;
+      low.minRelativeProtrusion *= weak;
+      low.supportTolerance /= weak;  // the same tolerance in metres
+      std::vector<Bump> bumps = findBumps(prof.polygon, low, &tri);
+      for (Bump& b : bumps) b.significance *= weak;
       if (!options.vertexMask.empty())  // extract only within the mask: the bump's apex must lie on it
         bumps.erase(std::remove_if(bumps.begin(), bumps.end(), [&](const Bump& b) { return !prof.inMask[b.apex]; }),
                     bumps.end());
@@ -215,7 +222,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       kept.push_back(std::move(c));
       continue;
     }
-    if (c.realSections < options.link.minSections) {
+    if (c.strongSections < options.link.minSections) {
       ++rep.droppedShort;
       continue;
     }

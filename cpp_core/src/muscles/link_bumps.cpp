@@ -230,11 +230,13 @@ std::vector<MuscleChain> linkBumps(const std::vector<SectionBumps>& sections, co
 
   mergeFragments(chains, sections, options);
   for (MuscleChain& ch : chains) {
-    ch.realSections = 0;
+    ch.realSections = ch.strongSections = 0;
     std::map<int, int> boneVotes;
     for (const ChainLink& l : ch.links) {
       if (l.bump >= 0) {
         ++ch.realSections;
+        const std::vector<double>& sig = sections[l.section].significance;
+        ch.strongSections += l.bump >= static_cast<int>(sig.size()) || sig[l.bump] >= 1.0;
         if (!sections[l.section].forced.empty() && sections[l.section].forced[l.bump]) ch.forced = true;
       }
       ++boneVotes[sections[l.section].plane.bone];
