@@ -408,9 +408,14 @@ TEST(Measured, SyntheticArmRecallPrecision) {
     if (seed == 0) printMuscles(r.muscles);
     for (size_t t = 0; t < arm.muscles.size(); ++t)
       if (acc.matchOfTrue[t] < 0) std::printf("  missed true muscle %s (%s)\n", arm.muscles[t].name.c_str(), arm.muscles[t].bone.c_str());
-    // Issue 3's target is recall and precision >= 0.9; the bump stage does not reach it yet (see the
-    // issue notes). Until then this guards what works (measured 0.67-0.83 per seed).
-    EXPECT_GE(acc.matched, 3) << "seed " << seed;
+    // Issue 3's target is recall and precision >= 0.9; not reached yet (the brachialis, mostly buried
+    // under its neighbours, is found on 3 of 4 seeds but its ellipse centres sit 5-8 mm too shallow to
+    // match). Until then this guards what works: measured 5 of 6 matched on every seed (was 4 before the
+    // base shape could tell opposite bellies from an oval: the triceps was missed).
+    std::printf("  (issue target: recall >= 0.9, precision >= 0.9)\n");
+    EXPECT_GE(acc.matched, 5) << "seed " << seed;
+    EXPECT_LE(acc.foundMuscles - acc.matched, 1) << "seed " << seed;
+    EXPECT_LT(acc.meanCenterError, 0.4) << "seed " << seed;
     recallSum += acc.recall;
     precisionSum += acc.precision;
     for (const Muscle& m : r.muscles) {
@@ -420,9 +425,10 @@ TEST(Measured, SyntheticArmRecallPrecision) {
     }
     EXPECT_NO_THROW(validateMuscles(r.muscles));
   }
-  std::printf("mean over seeds 0-3: recall %.3f precision %.3f (target 0.9 / 0.9)\n", recallSum / 4, precisionSum / 4);
-  EXPECT_GE(recallSum / 4, 0.65);
-  EXPECT_GE(precisionSum / 4, 0.65);
+  std::printf("mean over seeds 0-3: recall %.3f precision %.3f (target 0.9 / 0.9; measured 0.833 / 0.875)\n",
+              recallSum / 4, precisionSum / 4);
+  EXPECT_GE(recallSum / 4, 0.83);
+  EXPECT_GE(precisionSum / 4, 0.85);
 }
 
 TEST(Measured, SmoothArmHasNoMuscles) {
@@ -450,6 +456,15 @@ TEST(Measured, DeterministicAndUserControl) {
   o = {};
   o.minConfidence = 1.01;
   EXPECT_EQ(extractMuscles(arm.character, o).muscles.size(), 0u);
+  // A peak-magnitude floor only removes muscles: no belly stands out half its section's radius, and every
+  // significant bump stands out at least minProtrusion (3.5 mm), over 5 % of these sections' radius.
+  o = {};
+  o.minPeakRelative = 0.5;
+  const ExtractionResult flat = extractMuscles(arm.character, o);
+  EXPECT_EQ(flat.muscles.size(), 0u);
+  EXPECT_EQ(flat.report.droppedFlat, static_cast<int>(a.muscles.size()));
+  o.minPeakRelative = 0.05;
+  EXPECT_EQ(extractMuscles(arm.character, o).muscles.size(), a.muscles.size());
   // A vertex mask restricted to the forearm's side of the elbow finds no upper-arm muscle.
   const int forearm = arm.character.skeleton.find("forearm");
   ASSERT_GE(forearm, 0);
@@ -532,7 +547,8 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
 
   const Character cn = loadCharacter(neutral);
   const ExtractionResult rn = extractMuscles(cn);
-  std::printf("muscular male: %zu muscles, neutral: %zu muscles\n", rm.muscles.size(), rn.muscles.size());
+  std::printf("muscular male: %zu muscles, neutral: %zu muscles (issue target: neutral at most half; measured 7 vs 6)\n",
+              rm.muscles.size(), rn.muscles.size());
   EXPECT_GT(rm.muscles.size(), 0u);
   // Issue 3's target: the smooth skin gives at most half as many. Not reached yet (issue notes); guard:
   // fewer muscles on the smooth skin, and muscles on both arms and both legs of the muscular one.

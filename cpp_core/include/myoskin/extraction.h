@@ -67,6 +67,9 @@ struct ExtractionOptions {
                                                // threshold are linked too, so a muscle whose bump fades
                                                // towards its tendons is followed further; a muscle needs
                                                // link.minSections significant sections. 1 = no hysteresis
+  double minPeakRelative = 0.0;                // a muscle's bump must somewhere stand out at least this share of
+                                               // its section's mean radius (the second-highest of its sections
+                                               // counts, so one odd section does not decide); forced ones are kept
   double minConfidence = 0.6;                  // drop muscles below this confidence (forced ones are kept)
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
 };
@@ -92,6 +95,7 @@ struct ExtractionReport {
   int branches = 0;                   // transition sections placed at merges/splits
   int muscles = 0;                    // muscles returned
   int droppedShort = 0, droppedConfidence = 0, droppedRegionLimit = 0;
+  int droppedFlat = 0;                // muscles whose bump never stands out minPeakRelative of the section
   int droppedOverlap = 0;             // muscles of a dominated family where families overlap
   int forced = 0;                     // muscles from forced regions
   std::vector<SkippedSection> skipped;
@@ -115,6 +119,7 @@ struct SectionBumps {
   CuttingPlane plane;
   std::vector<Ellipse2> ellipses;
   std::vector<double> significance;  // per ellipse (>= 1 significant)
+  std::vector<double> relative;      // per ellipse, optional: the bump's protrusion / the section's mean radius
   std::vector<char> forced;          // per ellipse, optional (empty = none forced)
 };
 

@@ -26,6 +26,7 @@ struct SectionWork {
   std::string reason;
   std::vector<Ellipse2> ellipses;
   std::vector<double> significance;
+  std::vector<double> relative;
   std::vector<int> forcedRegion;  // per ellipse: forced region index or -1
 };
 
@@ -173,6 +174,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
         if (e.center.norm() < 0.25 * meanRadius && forced[b] < 0) continue;
         w.ellipses.push_back(e);
         w.significance.push_back(bumps[b].significance);
+        w.relative.push_back(meanRadius > 0 ? bumps[b].protrusion / meanRadius : 0.0);
         w.forcedRegion.push_back(forced[b]);
       }
       w.ok = true;
@@ -193,6 +195,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     s.plane = profiles[i].plane;
     s.ellipses = work[i].ellipses;
     s.significance = work[i].significance;
+    s.relative = work[i].relative;
     for (int f : work[i].forcedRegion) s.forced.push_back(f >= 0);
     for (double sg : s.significance) rep.bumps += sg >= 1.0;
     forcedOf.push_back(work[i].forcedRegion);
@@ -225,6 +228,17 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     if (c.strongSections < options.link.minSections) {
       ++rep.droppedShort;
       continue;
+    }
+    if (options.minPeakRelative > 0) {
+      std::vector<double> rel;
+      for (const ChainLink& l : c.links)
+        if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].relative.size()))
+          rel.push_back(sections[l.section].relative[l.bump]);
+      std::sort(rel.rbegin(), rel.rend());
+      if (rel.size() < 2 || rel[1] < options.minPeakRelative) {
+        ++rep.droppedFlat;
+        continue;
+      }
     }
     if (c.confidence < options.minConfidence) {
       ++rep.droppedConfidence;
