@@ -63,7 +63,7 @@ struct ExtractionOptions {
   std::vector<std::vector<char>> forcedRegions;  // one #V mask per forced muscle: the dominant bump inside
                                                  // the region is extracted even below significance
   double forcedMinProtrusion = 0.0005;         // metres: bumps weaker than this are not forced either
-  double weakFraction = 1.0;                   // hysteresis: bumps down to this share of the significance
+  double weakFraction = 0.8;                   // hysteresis: bumps down to this share of the significance
                                                // threshold are linked too, so a muscle whose bump fades
                                                // towards its tendons is followed further; a muscle needs
                                                // link.minSections significant sections. 1 = no hysteresis

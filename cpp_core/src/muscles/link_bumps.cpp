@@ -155,11 +155,17 @@ std::vector<MuscleChain> linkBumps(const std::vector<SectionBumps>& sections, co
       std::vector<std::tuple<double, int, int>> pairs;
       for (int oi = 0; oi < static_cast<int>(open.size()); ++oi) {
         if (open[oi].closed || open[oi].lastOrder >= order) continue;
-        const ChainLink& tail = chains[open[oi].chain].links.back();
+        const std::vector<ChainLink>& links = chains[open[oi].chain].links;
+        const ChainLink& tail = links.back();
         const SectionBumps& ts = sections[tail.section];
+        // The bump before the tail too, so a chain cannot turn from one belly onto its neighbour in a few
+        // small steps (the biceps sliding onto the brachialis): at most one turn per maxAngle.
+        const ChainLink* before = links.size() >= 2 && links[links.size() - 2].bump >= 0 ? &links[links.size() - 2] : nullptr;
         for (int b = 0; b < nb; ++b) {
           const double c = linkCost(ts, tail.ellipse, s, s.ellipses[b], options);
-          if (c >= 0) pairs.emplace_back(c, oi, b);
+          if (c < 0) continue;
+          if (before && linkCost(sections[before->section], before->ellipse, s, s.ellipses[b], options) < 0) continue;
+          pairs.emplace_back(c, oi, b);
         }
       }
       std::sort(pairs.begin(), pairs.end());
