@@ -461,7 +461,7 @@ TEST(Measured, DeterministicAndUserControl) {
   o.minPeakRelative = 0.5;
   const ExtractionResult flat = extractMuscles(arm.character, o);
   EXPECT_EQ(flat.muscles.size(), 0u);
-  EXPECT_EQ(flat.report.droppedFlat, static_cast<int>(a.muscles.size()));
+  EXPECT_GE(flat.report.droppedFlat, static_cast<int>(a.muscles.size()));  // chains, before family dominance
   o.minPeakRelative = 0.05;
   EXPECT_EQ(extractMuscles(arm.character, o).muscles.size(), a.muscles.size());
   // A vertex mask restricted to the forearm's side of the elbow finds no upper-arm muscle.

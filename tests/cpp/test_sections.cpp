@@ -253,6 +253,29 @@ TEST(CutSections, MakeHumanFamiliesAndMirroredLimbs) {
     ASSERT_GT(l.size(), 0u) << bone;
     for (size_t i = 0; i < l.size(); ++i) EXPECT_NEAR(l[i], r[i], 0.02 * l[i]) << bone << " " << i;
   }
+  // Shoulder planes cut the whole side of the torso: their profiles are clipped near the bone, every
+  // shoulder section is usable, and a clipped one is closed by a chord (onSkin 0) while its skin part
+  // stays within the clip radius of the bone.
+  EXPECT_EQ(perFamily["shoulder"].first, perFamily["shoulder"].second);
+  int clipped = 0;
+  for (const SectionProfile& s : profiles) {
+    if (!s.ok || s.plane.clipRadius <= 0) continue;
+    EXPECT_EQ(s.plane.family == "shoulder" || s.plane.family == "limb", true);
+    EXPECT_GT(s.plane.clipRadius, 0.1);  // 1.5 x the clavicle chain (about 16 cm)
+    if (s.onSkin.empty()) continue;
+    ++clipped;
+    ASSERT_EQ(static_cast<Eigen::Index>(s.onSkin.size()), s.polygon.rows());
+    int chord = 0;
+    for (Eigen::Index i = 0; i < s.polygon.rows(); ++i) {
+      chord += !s.onSkin[i];
+      if (s.onSkin[i]) EXPECT_LE(s.polygon.row(i).norm(), s.plane.clipRadius + 1e-9);
+    }
+    EXPECT_GT(chord, 0);
+    EXPECT_LT(chord, s.polygon.rows() / 2);
+    EXPECT_GT(signedArea(s.polygon), 0.0);
+  }
+  std::printf("  %d clipped shoulder profiles\n", clipped);
+  EXPECT_GE(clipped, 4);
   // Abdomen loops exclude the arms: narrower than the shoulders.
   for (const SectionProfile& s : profiles)
     if (s.ok && s.plane.family == "abdomen") {

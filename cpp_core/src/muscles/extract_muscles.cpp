@@ -120,6 +120,16 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       low.supportTolerance /= weak;  // the same tolerance in metres
       std::vector<Bump> bumps = findBumps(prof.polygon, low, &tri);
       for (Bump& b : bumps) b.significance *= weak;
+      if (!prof.onSkin.empty())  // a clipped profile: bumps lie on the skin, not on the closing chord
+        bumps.erase(std::remove_if(bumps.begin(), bumps.end(),
+                                   [&](const Bump& b) {
+                                     const int np = static_cast<int>(prof.polygon.rows());
+                                     for (int i = b.first;; i = (i + 1) % np) {
+                                       if (!prof.onSkin[i]) return true;
+                                       if (i == b.last) return false;
+                                     }
+                                   }),
+                    bumps.end());
       if (!options.vertexMask.empty())  // extract only within the mask: the bump's apex must lie on it
         bumps.erase(std::remove_if(bumps.begin(), bumps.end(), [&](const Bump& b) { return !prof.inMask[b.apex]; }),
                     bumps.end());
@@ -166,12 +176,17 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
         }
       }
       // A muscle lies beside the bone, not around it: an ellipse centred within a quarter of the section's
-      // mean radius of the bone describes the whole section, not a belly.
+      // mean radius of the bone describes the whole section, not a belly (on limbs, which the bone centres).
       const double meanRadius = prof.polygon.rowwise().norm().mean();
       for (size_t b = 0; b < bumps.size(); ++b) {
         const Ellipse2 e = fitBumpEllipse(prof.polygon, bumps[b], tri);
         if (!std::isfinite(e.center.x()) || !std::isfinite(e.center.y()) || !(e.a > 0) || !(e.b > 0)) continue;
-        if (e.center.norm() < 0.25 * meanRadius && forced[b] < 0) continue;
+        if (forced[b] < 0) {
+          if (prof.onSkin.empty() && e.center.norm() < 0.25 * meanRadius) continue;
+          // A clipped (shoulder) profile is not centred on its bone: there the belly must not enclose the bone.
+          const Vec2 local = Eigen::Rotation2Dd(-e.angle) * (-e.center);
+          if (!prof.onSkin.empty() && std::pow(local.x() / e.a, 2) + std::pow(local.y() / e.b, 2) <= 1.0) continue;
+        }
         w.ellipses.push_back(e);
         w.significance.push_back(bumps[b].significance);
         w.relative.push_back(meanRadius > 0 ? bumps[b].protrusion / meanRadius : 0.0);
