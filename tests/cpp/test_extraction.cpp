@@ -521,10 +521,14 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
     if (c.x() < -0.01) ++right[part(m)], rc.push_back(c);
     if (std::abs(c.x()) <= 0.01) ++left["centre"], ++right["centre"];
   }
-  // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Not reached yet
-  // (see the issue notes): printed, and the parts that work are asserted.
-  for (const char* p : {"arm", "leg", "torso"}) std::printf("  %s: %d at +x, %d at -x\n", p, left[p], right[p]);
-  EXPECT_GE(left["torso"] + right["torso"], 1);
+  // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Measured: both
+  // arms (2 + 2), both legs (1 + 4), torso and shoulders on both sides (2 + 2); 4 mirrored pairs within 1 cm
+  // (biceps regions, shoulders, front thighs), not all. Asserted: every part on both sides, >= 3 pairs.
+  for (const char* p : {"arm", "leg", "torso"}) std::printf("  %s: %d at +x, %d at -x (issue target: both)\n", p, left[p], right[p]);
+  for (const char* p : {"arm", "leg", "torso"}) {
+    EXPECT_GE(left[p], 1) << p;
+    EXPECT_GE(right[p], 1) << p;
+  }
   // Mirror symmetry: muscles with a mirrored partner within 1 cm.
   std::vector<char> used(rc.size(), 0);
   int paired = 0;
@@ -540,21 +544,18 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
       if (d <= 0.01) used[best] = 1, ++paired;
     }
   }
-  std::printf("  symmetry: %zu at +x, %zu at -x, %d mirrored pairs within 1 cm (worst nearest %.4f m)\n", lc.size(),
-              rc.size(), paired, worst);
-  // (printed above; not asserted until extraction reaches the issue's target)
+  std::printf("  symmetry: %zu at +x, %zu at -x, %d mirrored pairs within 1 cm (worst nearest %.4f m; issue target: "
+              "all mirrored)\n", lc.size(), rc.size(), paired, worst);
+  EXPECT_GE(paired, 3);
 
   const Character cn = loadCharacter(neutral);
   const ExtractionResult rn = extractMuscles(cn);
-  std::printf("muscular male: %zu muscles, neutral: %zu muscles (issue target: neutral at most half; measured 7 vs 6)\n",
+  std::printf("muscular male: %zu muscles, neutral: %zu muscles (issue target: neutral at most half; measured 13 vs 8)\n",
               rm.muscles.size(), rn.muscles.size());
-  EXPECT_GT(rm.muscles.size(), 0u);
-  // Issue 3's target: the smooth skin gives at most half as many. Not reached yet (issue notes); guard:
-  // fewer muscles on the smooth skin, and muscles on both arms and both legs of the muscular one.
-  EXPECT_LT(rn.muscles.size(), rm.muscles.size());
-  EXPECT_GE(left["arm"], 1);
-  EXPECT_GE(right["arm"], 1);
-  EXPECT_GE(left["leg"] + right["leg"], 1);
+  EXPECT_GE(rm.muscles.size(), 10u);
+  // Issue 3's target: the smooth skin gives at most half as many. Not reached (the neutral body's breasts,
+  // belly, thighs and inner arms stand out as much as muscles do); guard: at most 70 %.
+  EXPECT_LE(10 * rn.muscles.size(), 7 * rm.muscles.size());
 }
 
 // ============================================================================

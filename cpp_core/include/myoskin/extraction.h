@@ -70,7 +70,7 @@ struct ExtractionOptions {
   double minPeakRelative = 0.0;                // a muscle's bump must somewhere stand out at least this share of
                                                // its section's mean radius (the second-highest of its sections
                                                // counts, so one odd section does not decide); forced ones are kept
-  double minConfidence = 0.6;                  // drop muscles below this confidence (forced ones are kept)
+  double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones are kept)
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
 };
 
