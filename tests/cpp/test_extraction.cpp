@@ -521,9 +521,10 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
     if (c.x() < -0.01) ++right[part(m)], rc.push_back(c);
     if (std::abs(c.x()) <= 0.01) ++left["centre"], ++right["centre"];
   }
-  // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Measured: both
-  // arms (2 + 2), both legs (1 + 4), torso and shoulders on both sides (2 + 2); 4 mirrored pairs within 1 cm
-  // (biceps regions, shoulders, front thighs), not all. Asserted: every part on both sides, >= 3 pairs.
+  // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Measured: arms
+  // 2 + 2, legs 3 + 3, torso and shoulders 2 + 3; every limb and shoulder muscle has its mirror within 1 cm
+  // (6 pairs); the abdomen's (one family across both sides) do not. Asserted: every part on both sides,
+  // >= 6 pairs.
   for (const char* p : {"arm", "leg", "torso"}) std::printf("  %s: %d at +x, %d at -x (issue target: both)\n", p, left[p], right[p]);
   for (const char* p : {"arm", "leg", "torso"}) {
     EXPECT_GE(left[p], 1) << p;
@@ -546,16 +547,16 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
   }
   std::printf("  symmetry: %zu at +x, %zu at -x, %d mirrored pairs within 1 cm (worst nearest %.4f m; issue target: "
               "all mirrored)\n", lc.size(), rc.size(), paired, worst);
-  EXPECT_GE(paired, 3);
+  EXPECT_GE(paired, 6);
 
   const Character cn = loadCharacter(neutral);
   const ExtractionResult rn = extractMuscles(cn);
-  std::printf("muscular male: %zu muscles, neutral: %zu muscles (issue target: neutral at most half; measured 13 vs 8)\n",
+  std::printf("muscular male: %zu muscles, neutral: %zu muscles (issue target: neutral at most half; measured 15 vs 9)\n",
               rm.muscles.size(), rn.muscles.size());
-  EXPECT_GE(rm.muscles.size(), 10u);
+  EXPECT_GE(rm.muscles.size(), 14u);
   // Issue 3's target: the smooth skin gives at most half as many. Not reached (the neutral body's breasts,
-  // belly, thighs and inner arms stand out as much as muscles do); guard: at most 70 %.
-  EXPECT_LE(10 * rn.muscles.size(), 7 * rm.muscles.size());
+  // belly, thighs and inner arms stand out as much as muscles do); guard: at most 65 % (measured 60 %).
+  EXPECT_LE(100 * rn.muscles.size(), 65 * rm.muscles.size());
 }
 
 // ============================================================================

@@ -96,7 +96,7 @@ struct ProfileOptions {
 // at least minRegionShare of it lies on the plane's region (else skipped: armpit, groin, a neighbouring limb).
 // A plane with clipRadius > 0 keeps instead the longest run of the loop that lies on its region and within
 // clipRadius of the origin (at least clipRadius long), closed by a straight chord (onSkin 0 there);
-// made counter-clockwise and resampled evenly starting on the +X axis. `vertexMask` (#V, optional) marks the
+// made counter-clockwise and resampled evenly starting on the +Y axis. `vertexMask` (#V, optional) marks the
 // profile points on masked skin (inMask); a section with no masked point is skipped. Parallel over planes,
 // deterministic. Throws InputError for a mask of the wrong size.
 std::vector<SectionProfile> cutSections(const Character& character, const std::vector<CuttingPlane>& planes,

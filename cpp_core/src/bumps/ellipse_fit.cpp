@@ -94,7 +94,8 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
   if (hi - lo >= 4) {
     arc = std::vector<Vec2>(arc.begin() + lo, arc.begin() + hi + 1);
     s = std::vector<double>(s.begin() + lo, s.begin() + hi + 1);
-    for (double& x : s) x -= s.front();
+    const double s0 = s.front();  // (a copy: s.front() itself becomes 0 in the loop)
+    for (double& x : s) x -= s0;
     apexAt -= static_cast<int>(lo);
   }
   const double length = s.back();

@@ -51,23 +51,25 @@ bool enclosesOrigin(const std::vector<Vec2>& pts) {
 // Resampling
 // ============================================================================
 
-// N points evenly spaced by arc length along the closed CCW loop, starting where it crosses the +X axis.
+// N points evenly spaced by arc length along the closed CCW loop, starting where it crosses the +Y axis
+// (nearest the origin). The +Y axis is where mirrored limbs' frames agree (their X axes are mirrored and
+// negated), so a mirrored section is resampled at exactly the mirrored points.
 // `source` receives, per output point, the loop index of the segment it lies on.
 Points2 resample(const std::vector<Vec2>& pts, int count, std::vector<int>& source) {
   const size_t n = pts.size();
   size_t start = 0;
-  double bestX = INFINITY;
+  double bestY = INFINITY;
   for (size_t i = 0; i < n; ++i) {
     const Vec2 &a = pts[i], &b = pts[(i + 1) % n];
-    if (a.y() < 0 && b.y() >= 0) {
-      const double x = a.x() + (b.x() - a.x()) * (-a.y()) / (b.y() - a.y());
-      if (x > 0 && x < bestX) bestX = x, start = i;
+    if (a.x() > 0 && b.x() <= 0) {
+      const double y = a.y() + (b.y() - a.y()) * a.x() / (a.x() - b.x());
+      if (y > 0 && y < bestY) bestY = y, start = i;
     }
   }
   std::vector<Vec2> ring;
   std::vector<int> ringIndex;
   const Vec2 &a0 = pts[start], &b0 = pts[(start + 1) % n];
-  const double t0 = std::isfinite(bestX) && b0.y() != a0.y() ? (-a0.y()) / (b0.y() - a0.y()) : 0.0;
+  const double t0 = std::isfinite(bestY) && b0.x() != a0.x() ? a0.x() / (a0.x() - b0.x()) : 0.0;
   ring.push_back(a0 + t0 * (b0 - a0));
   ringIndex.push_back(static_cast<int>(start));
   for (size_t k = 1; k <= n; ++k) {
