@@ -408,12 +408,12 @@ TEST(Measured, SyntheticArmRecallPrecision) {
     if (seed == 0) printMuscles(r.muscles);
     for (size_t t = 0; t < arm.muscles.size(); ++t)
       if (acc.matchOfTrue[t] < 0) std::printf("  missed true muscle %s (%s)\n", arm.muscles[t].name.c_str(), arm.muscles[t].bone.c_str());
-    // Issue 3's target: recall and precision >= 0.9. Measured: all 6 matched on seeds 0, 1 and 3, no
-    // false muscle on any seed; on seed 2 the brachialis (mostly buried between biceps and elbow) shows in
-    // only 5 sections and is missed (recall 0.83 there).
+    // Issue 3's target: recall and precision >= 0.9. Measured: all 6 matched and nothing else on seeds 0, 1
+    // and 3; on seed 2 the brachialis (mostly buried between biceps and elbow) shows in only 5 sections: it
+    // is found but too short to cover 60 % of its length (recall and precision 0.83 there).
     std::printf("  (issue target: recall >= 0.9, precision >= 0.9)\n");
     EXPECT_GE(acc.matched, seed == 2 ? 5 : 6) << "seed " << seed;
-    EXPECT_EQ(acc.foundMuscles, acc.matched) << "seed " << seed;
+    EXPECT_LE(acc.foundMuscles - acc.matched, seed == 2 ? 1 : 0) << "seed " << seed;
     EXPECT_LT(acc.meanCenterError, 0.35) << "seed " << seed;
     recallSum += acc.recall;
     precisionSum += acc.precision;
@@ -424,7 +424,7 @@ TEST(Measured, SyntheticArmRecallPrecision) {
     }
     EXPECT_NO_THROW(validateMuscles(r.muscles));
   }
-  std::printf("mean over seeds 0-3: recall %.3f precision %.3f (target 0.9 / 0.9; measured 0.958 / 1.000)\n",
+  std::printf("mean over seeds 0-3: recall %.3f precision %.3f (target 0.9 / 0.9; measured 0.958 / 0.958)\n",
               recallSum / 4, precisionSum / 4);
   EXPECT_GE(recallSum / 4, 0.9);
   EXPECT_GE(precisionSum / 4, 0.9);
@@ -458,11 +458,11 @@ TEST(Measured, DeterministicAndUserControl) {
   // A peak-magnitude floor only removes muscles: no belly stands out half its section's radius, and every
   // significant bump stands out at least minProtrusion (3.5 mm), over 5 % of these sections' radius.
   o = {};
-  o.minPeakRelative = 0.5;
+  o.minRelative = 0.5;
   const ExtractionResult flat = extractMuscles(arm.character, o);
   EXPECT_EQ(flat.muscles.size(), 0u);
   EXPECT_GE(flat.report.droppedFlat, static_cast<int>(a.muscles.size()));  // chains, before family dominance
-  o.minPeakRelative = 0.05;
+  o.minRelative = 0.05;
   EXPECT_EQ(extractMuscles(arm.character, o).muscles.size(), a.muscles.size());
   // A vertex mask restricted to the forearm's side of the elbow finds no upper-arm muscle.
   const int forearm = arm.character.skeleton.find("forearm");
@@ -522,9 +522,9 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
     if (std::abs(c.x()) <= 0.01) ++left["centre"], ++right["centre"];
   }
   // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Measured: arms
-  // 2 + 2, legs 3 + 3, torso and shoulders 2 + 3; every limb and shoulder muscle has its mirror within 1 cm
-  // (6 pairs); the abdomen's (one family across both sides) do not. Asserted: every part on both sides,
-  // >= 6 pairs.
+  // 3 + 3, legs 2 + 2, torso and shoulders 3 + 3; every limb and shoulder muscle has its mirror within 1 cm
+  // (6 pairs); the abdomen's four (one family across both sides) do not. Asserted: every part on both
+  // sides, >= 6 pairs.
   for (const char* p : {"arm", "leg", "torso"}) std::printf("  %s: %d at +x, %d at -x (issue target: both)\n", p, left[p], right[p]);
   for (const char* p : {"arm", "leg", "torso"}) {
     EXPECT_GE(left[p], 1) << p;
@@ -551,12 +551,12 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
 
   const Character cn = loadCharacter(neutral);
   const ExtractionResult rn = extractMuscles(cn);
-  std::printf("muscular male: %zu muscles, neutral: %zu muscles (issue target: neutral at most half; measured 15 vs 9)\n",
+  std::printf("muscular male: %zu muscles, neutral: %zu muscles (issue target: neutral at most half; measured 16 vs 8)\n",
               rm.muscles.size(), rn.muscles.size());
   EXPECT_GE(rm.muscles.size(), 14u);
-  // Issue 3's target: the smooth skin gives at most half as many. Not reached (the neutral body's breasts,
-  // belly, thighs and inner arms stand out as much as muscles do); guard: at most 65 % (measured 60 %).
-  EXPECT_LE(100 * rn.muscles.size(), 65 * rm.muscles.size());
+  // Issue 3's target: the smooth skin gives at most half as many. Met, at the boundary (16 vs 8): the
+  // neutral body's breasts, front thighs, inner upper arms and forearms stand out as muscles do.
+  EXPECT_LE(2 * rn.muscles.size(), rm.muscles.size());
 }
 
 // ============================================================================

@@ -244,13 +244,13 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       ++rep.droppedShort;
       continue;
     }
-    if (options.minPeakRelative > 0) {
-      std::vector<double> rel;
+    if (options.minRelative > 0) {  // the bumps' mean height relative to their sections' size
+      double sum = 0.0;
+      int count = 0;
       for (const ChainLink& l : c.links)
         if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].relative.size()))
-          rel.push_back(sections[l.section].relative[l.bump]);
-      std::sort(rel.rbegin(), rel.rend());
-      if (rel.size() < 2 || rel[1] < options.minPeakRelative) {
+          sum += sections[l.section].relative[l.bump], ++count;
+      if (count == 0 || sum < options.minRelative * count) {
         ++rep.droppedFlat;
         continue;
       }
