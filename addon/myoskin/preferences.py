@@ -16,10 +16,10 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
         default=0.0, min=0.0, soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
     min_confidence: FloatProperty(
         name="Minimum Confidence", description="Extraction drops muscles less significant than this",
-        default=0.6, min=0.0, max=1.0)
+        default=0.5, min=0.0, max=1.0)
     min_sections: IntProperty(
         name="Minimum Sections", description="Sections a muscle needs to be kept by extraction",
-        default=5, min=1, soft_max=20)
+        default=4, min=1, soft_max=20)
     joints_per_muscle: IntProperty(
         name="Joints per Muscle", description="Muscle joints (deform bones) placed along each muscle's action path",
         default=4, min=1, soft_max=16)
@@ -46,8 +46,8 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
 class _Defaults:
     """The preference defaults, for scripts run without the add-on enabled."""
     section_spacing = 0.0
-    min_confidence = 0.6
-    min_sections = 5
+    min_confidence = 0.5
+    min_sections = 4
     joints_per_muscle = 4
     bulge_factor = 1.0
 

@@ -143,7 +143,7 @@ class MyoskinSceneSettings(bpy.types.PropertyGroup):
                            "(0 = automatic: 1/80 of the character's extent)", default=0.0, min=0.0,
                            soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
     min_confidence: FloatProperty(name="Min Confidence", description="Drop muscles less significant than this",
-                                  default=0.6, min=0.0, max=1.0)
+                                  default=0.5, min=0.0, max=1.0)
     limit: EnumProperty(name="Limit To", items=LIMITS, default='ALL')
     vertex_group: StringProperty(name="Vertex Group", description="Region for Limit To / Add Muscle")
     region_source: EnumProperty(name="Region", items=(

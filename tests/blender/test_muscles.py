@@ -313,7 +313,7 @@ def test_moving_a_locator_updates_the_muscle():
     curve, surface = np.asarray(m.root_curve), mesh_co(item.surface)
     assert np.abs(curve[-1] - np.array(item.insertion_locator.location)).max() < 1e-9
     assert abs(curve[-1][2] - before_curve[-1][2] - 0.02) < 1e-6
-    assert np.abs(curve[0] - before_curve[0]).max() < 1e-9  # the origin stayed
+    assert np.abs(curve[0] - before_curve[0]).max() < 1e-6  # the origin stayed (locators are float32)
     assert np.abs(surface - before_surface).max() > 0.01
     # the pole vertex of the insertion cap is the insertion
     assert np.linalg.norm(surface - np.array(item.insertion_locator.location), axis=1).min() < 1e-6

@@ -143,6 +143,45 @@ TEST(Bumps, InvariantUnderStartIndexScaleAndRigidMotion) {
   for (size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(a[i].first == b[i].first && a[i].last == b[i].last && a[i].apex == b[i].apex);
 }
 
+TEST(BumpEllipse, MirroredSectionGivesMirroredBumpsAndEllipses) {
+  // Mirrored limbs (left/right) give mirrored sections: bumps and ellipses must be exact mirror images.
+  // (An arc-length offset once made the ellipse weights depend on where the belly's core started along
+  // the arc, so a mirrored arc got another ellipse: the left and right calves linked differently.)
+  // Lopsided bellies (steep on one side, a long tail on the other) on an oval limb, 3 mm apart samples.
+  const Eigen::Index n = 150;
+  Points2 p(n, 2);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double t = 2 * kPi * i / n;
+    double r = 0.05;
+    for (double a : {0.5, 2.6, 4.3}) {
+      const double d = std::remainder(t - a, 2 * kPi), w = d < 0 ? 0.25 : 0.7;
+      r += 0.008 * std::exp(-(d / w) * (d / w));
+    }
+    p.row(i) << 1.15 * r * std::cos(t), r * std::sin(t);
+  }
+  Points2 m(n, 2);  // x -> -x, reversed so it stays counter-clockwise
+  for (Eigen::Index i = 0; i < n; ++i) m.row(i) << -p(n - 1 - i, 0), p(n - 1 - i, 1);
+  const SectionTriangulation tp = triangulateSection(p), tm = triangulateSection(m);
+  const std::vector<Bump> bp = findBumps(p, {}, &tp), bm = findBumps(m, {}, &tm);
+  ASSERT_EQ(bp.size(), 3u);
+  ASSERT_EQ(bm.size(), bp.size());
+  for (const Bump& b : bp) {
+    const Ellipse2 e = fitBumpEllipse(p, b, tp);
+    bool found = false;
+    for (const Bump& c : bm) {
+      if (c.apex != n - 1 - b.apex) continue;
+      found = true;
+      EXPECT_NEAR(c.protrusion, b.protrusion, 1e-12);
+      const Ellipse2 f = fitBumpEllipse(m, c, tm);
+      EXPECT_NEAR(f.center.x(), -e.center.x(), 1e-9);
+      EXPECT_NEAR(f.center.y(), e.center.y(), 1e-9);
+      EXPECT_NEAR(f.a, e.a, 1e-9);
+      EXPECT_NEAR(f.b, e.b, 1e-9);
+    }
+    EXPECT_TRUE(found) << "apex " << b.apex;
+  }
+}
+
 // ============================================================================
 // Ellipses
 // ============================================================================

@@ -408,9 +408,13 @@ TEST(Measured, SyntheticArmRecallPrecision) {
     if (seed == 0) printMuscles(r.muscles);
     for (size_t t = 0; t < arm.muscles.size(); ++t)
       if (acc.matchOfTrue[t] < 0) std::printf("  missed true muscle %s (%s)\n", arm.muscles[t].name.c_str(), arm.muscles[t].bone.c_str());
-    // Issue 3's target is recall and precision >= 0.9; the bump stage does not reach it yet (see the
-    // issue notes). Until then this guards what works (measured 0.67-0.83 per seed).
-    EXPECT_GE(acc.matched, 3) << "seed " << seed;
+    // Issue 3's target: recall and precision >= 0.9. Measured: all 6 matched and nothing else on seeds 0, 1
+    // and 3; on seed 2 the brachialis (mostly buried between biceps and elbow) shows in only 5 sections: it
+    // is found but too short to cover 60 % of its length (recall and precision 0.83 there).
+    std::printf("  (issue target: recall >= 0.9, precision >= 0.9)\n");
+    EXPECT_GE(acc.matched, seed == 2 ? 5 : 6) << "seed " << seed;
+    EXPECT_LE(acc.foundMuscles - acc.matched, seed == 2 ? 1 : 0) << "seed " << seed;
+    EXPECT_LT(acc.meanCenterError, 0.35) << "seed " << seed;
     recallSum += acc.recall;
     precisionSum += acc.precision;
     for (const Muscle& m : r.muscles) {
@@ -420,9 +424,10 @@ TEST(Measured, SyntheticArmRecallPrecision) {
     }
     EXPECT_NO_THROW(validateMuscles(r.muscles));
   }
-  std::printf("mean over seeds 0-3: recall %.3f precision %.3f (target 0.9 / 0.9)\n", recallSum / 4, precisionSum / 4);
-  EXPECT_GE(recallSum / 4, 0.65);
-  EXPECT_GE(precisionSum / 4, 0.65);
+  std::printf("mean over seeds 0-3: recall %.3f precision %.3f (target 0.9 / 0.9; measured 0.958 / 0.958)\n",
+              recallSum / 4, precisionSum / 4);
+  EXPECT_GE(recallSum / 4, 0.9);
+  EXPECT_GE(precisionSum / 4, 0.9);
 }
 
 TEST(Measured, SmoothArmHasNoMuscles) {
@@ -450,6 +455,15 @@ TEST(Measured, DeterministicAndUserControl) {
   o = {};
   o.minConfidence = 1.01;
   EXPECT_EQ(extractMuscles(arm.character, o).muscles.size(), 0u);
+  // A peak-magnitude floor only removes muscles: no belly stands out half its section's radius, and every
+  // significant bump stands out at least minProtrusion (3.5 mm), over 5 % of these sections' radius.
+  o = {};
+  o.minRelative = 0.5;
+  const ExtractionResult flat = extractMuscles(arm.character, o);
+  EXPECT_EQ(flat.muscles.size(), 0u);
+  EXPECT_GE(flat.report.droppedFlat, static_cast<int>(a.muscles.size()));  // chains, before family dominance
+  o.minRelative = 0.05;
+  EXPECT_EQ(extractMuscles(arm.character, o).muscles.size(), a.muscles.size());
   // A vertex mask restricted to the forearm's side of the elbow finds no upper-arm muscle.
   const int forearm = arm.character.skeleton.find("forearm");
   ASSERT_GE(forearm, 0);
@@ -507,10 +521,15 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
     if (c.x() < -0.01) ++right[part(m)], rc.push_back(c);
     if (std::abs(c.x()) <= 0.01) ++left["centre"], ++right["centre"];
   }
-  // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Not reached yet
-  // (see the issue notes): printed, and the parts that work are asserted.
-  for (const char* p : {"arm", "leg", "torso"}) std::printf("  %s: %d at +x, %d at -x\n", p, left[p], right[p]);
-  EXPECT_GE(left["torso"] + right["torso"], 1);
+  // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Measured: arms
+  // 3 + 3, legs 2 + 2, torso and shoulders 3 + 3; every limb and shoulder muscle has its mirror within 1 cm
+  // (6 pairs); the abdomen's four (one family across both sides) do not. Asserted: every part on both
+  // sides, >= 6 pairs.
+  for (const char* p : {"arm", "leg", "torso"}) std::printf("  %s: %d at +x, %d at -x (issue target: both)\n", p, left[p], right[p]);
+  for (const char* p : {"arm", "leg", "torso"}) {
+    EXPECT_GE(left[p], 1) << p;
+    EXPECT_GE(right[p], 1) << p;
+  }
   // Mirror symmetry: muscles with a mirrored partner within 1 cm.
   std::vector<char> used(rc.size(), 0);
   int paired = 0;
@@ -526,20 +545,18 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
       if (d <= 0.01) used[best] = 1, ++paired;
     }
   }
-  std::printf("  symmetry: %zu at +x, %zu at -x, %d mirrored pairs within 1 cm (worst nearest %.4f m)\n", lc.size(),
-              rc.size(), paired, worst);
-  // (printed above; not asserted until extraction reaches the issue's target)
+  std::printf("  symmetry: %zu at +x, %zu at -x, %d mirrored pairs within 1 cm (worst nearest %.4f m; issue target: "
+              "all mirrored)\n", lc.size(), rc.size(), paired, worst);
+  EXPECT_GE(paired, 6);
 
   const Character cn = loadCharacter(neutral);
   const ExtractionResult rn = extractMuscles(cn);
-  std::printf("muscular male: %zu muscles, neutral: %zu muscles\n", rm.muscles.size(), rn.muscles.size());
-  EXPECT_GT(rm.muscles.size(), 0u);
-  // Issue 3's target: the smooth skin gives at most half as many. Not reached yet (issue notes); guard:
-  // fewer muscles on the smooth skin, and muscles on both arms and both legs of the muscular one.
-  EXPECT_LT(rn.muscles.size(), rm.muscles.size());
-  EXPECT_GE(left["arm"], 1);
-  EXPECT_GE(right["arm"], 1);
-  EXPECT_GE(left["leg"] + right["leg"], 1);
+  std::printf("muscular male: %zu muscles, neutral: %zu muscles (issue target: neutral at most half; measured 16 vs 8)\n",
+              rm.muscles.size(), rn.muscles.size());
+  EXPECT_GE(rm.muscles.size(), 14u);
+  // Issue 3's target: the smooth skin gives at most half as many. Met, at the boundary (16 vs 8): the
+  // neutral body's breasts, front thighs, inner upper arms and forearms stand out as muscles do.
+  EXPECT_LE(2 * rn.muscles.size(), rm.muscles.size());
 }
 
 // ============================================================================

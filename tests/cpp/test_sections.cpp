@@ -223,6 +223,10 @@ TEST(CutSections, VertexMaskMarksPointsAndSkipsSectionsOutside) {
 // MakeHuman: every family, left/right mirrored
 // ============================================================================
 
+namespace {
+Vec3 planePointOf(const CuttingPlane& p, const Vec2& q) { return p.origin + q.x() * p.xAxis + q.y() * p.yAxis; }
+}  // namespace
+
 TEST(CutSections, MakeHumanFamiliesAndMirroredLimbs) {
   const std::string path = test::sharedPath("characters/makehuman_muscular_male/makehuman_muscular_male.glb");
   MYOSKIN_REQUIRE_SHARED(path);
@@ -253,6 +257,57 @@ TEST(CutSections, MakeHumanFamiliesAndMirroredLimbs) {
     ASSERT_GT(l.size(), 0u) << bone;
     for (size_t i = 0; i < l.size(); ++i) EXPECT_NEAR(l[i], r[i], 0.02 * l[i]) << bone << " " << i;
   }
+  // Mirrored limbs are resampled at mirrored points (the resampling starts on the +Y axis, where the mirrored
+  // frames agree), so left and right sections give the same bumps.
+  int mirroredPairs = 0;
+  for (const SectionProfile& l : profiles) {
+    if (!l.ok || l.plane.family != "limb") continue;
+    const std::string name = c.skeleton.bones[l.plane.bone].name;
+    // Arms and legs proper (near the ankle the loop can cross the +Y axis twice at nearly the same
+    // distance, and the shoulder's clipped profiles are chosen by run length, so those may start apart).
+    if (name != "upperarm02.L" && name != "lowerarm01.L" && name != "upperleg02.L" && name != "lowerleg01.L") continue;
+    const int rb = c.skeleton.find(name.substr(0, name.size() - 2) + ".R");
+    for (const SectionProfile& r : profiles) {
+      if (!r.ok || r.plane.bone != rb || r.plane.order != l.plane.order) continue;
+      ASSERT_EQ(l.polygon.rows(), r.polygon.rows()) << name;
+      double worst = 0.0;
+      for (Eigen::Index i = 0; i < l.polygon.rows(); ++i) {
+        Vec3 q = planePointOf(l.plane, l.polygon.row(i).transpose());
+        q.x() = -q.x();
+        double best = INFINITY;
+        for (Eigen::Index j = 0; j < r.polygon.rows(); ++j)
+          best = std::min(best, (planePointOf(r.plane, r.polygon.row(j).transpose()) - q).norm());
+        worst = std::max(worst, best);
+      }
+      EXPECT_LT(worst, 1e-4) << name << " section " << l.plane.order;  // the mesh itself is mirrored to 6e-5 m
+      ++mirroredPairs;
+    }
+  }
+  EXPECT_GE(mirroredPairs, 30);
+  std::printf("  %d mirrored limb section pairs resampled at mirrored points\n", mirroredPairs);
+  // Shoulder planes cut the whole side of the torso: their profiles are clipped near the bone, every
+  // shoulder section is usable, and a clipped one is closed by a chord (onSkin 0) while its skin part
+  // stays within the clip radius of the bone.
+  EXPECT_EQ(perFamily["shoulder"].first, perFamily["shoulder"].second);
+  int clipped = 0;
+  for (const SectionProfile& s : profiles) {
+    if (!s.ok || s.plane.clipRadius <= 0) continue;
+    EXPECT_EQ(s.plane.family == "shoulder" || s.plane.family == "limb", true);
+    EXPECT_GT(s.plane.clipRadius, 0.1);  // 1.5 x the clavicle chain (about 16 cm)
+    if (s.onSkin.empty()) continue;
+    ++clipped;
+    ASSERT_EQ(static_cast<Eigen::Index>(s.onSkin.size()), s.polygon.rows());
+    int chord = 0;
+    for (Eigen::Index i = 0; i < s.polygon.rows(); ++i) {
+      chord += !s.onSkin[i];
+      if (s.onSkin[i]) EXPECT_LE(s.polygon.row(i).norm(), s.plane.clipRadius + 1e-9);
+    }
+    EXPECT_GT(chord, 0);
+    EXPECT_LT(chord, s.polygon.rows() / 2);
+    EXPECT_GT(signedArea(s.polygon), 0.0);
+  }
+  std::printf("  %d clipped shoulder profiles\n", clipped);
+  EXPECT_GE(clipped, 4);
   // Abdomen loops exclude the arms: narrower than the shoulders.
   for (const SectionProfile& s : profiles)
     if (s.ok && s.plane.family == "abdomen") {

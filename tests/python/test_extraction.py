@@ -50,6 +50,13 @@ def test_user_control_options(core, arm):
     assert all(np.asarray(m.section_centers)[:, 0].min() > 0.45 for m in forearm)
     none, _ = core.extract_muscles(character, min_confidence=1.0)
     assert none == []
+    flat, report = core.extract_muscles(character, min_relative=0.5)
+    assert flat == [] and report["dropped_flat"] >= len(everything)
+    # Hysteresis (the default) measures at least as well as none on this arm (seed 2: precision 1.0 vs 0.83).
+    strict, _ = core.extract_muscles(character, weak_fraction=1.0)
+    with_h, without = core.measure_extraction(everything, arm[1]), core.measure_extraction(strict, arm[1])
+    assert len(strict) > 0
+    assert with_h["recall"] >= without["recall"] and with_h["precision"] >= without["precision"]
 
 
 def test_muscles_round_trip_through_json(core, arm):
@@ -67,6 +74,10 @@ def test_bad_input_raises_value_error(core, arm):
         core.extract_muscles(character, vertex_mask=np.ones(3, dtype=bool))
     with pytest.raises(ValueError, match="spacing"):
         core.extract_muscles(character, spacing=-1.0)
+    with pytest.raises(ValueError, match="weak_fraction"):
+        core.extract_muscles(character, weak_fraction=0.0)
+    with pytest.raises(ValueError, match="min_relative"):
+        core.extract_muscles(character, min_relative=float("nan"))
     with pytest.raises(ValueError, match="levels"):
         core.subdivide(character, -1)
 

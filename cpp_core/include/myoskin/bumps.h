@@ -28,8 +28,9 @@ struct BumpOptions {
   bool absorbJunctions = true;  // a junction two of whose branches merged up to it joins them and merging goes
                                 // on (the chordal-axis pruning the paper cites); false = stop at every junction
                                 // (the paper's text literally: densely sampled sections then give tiny regions)
-  int baseHarmonics = 2;        // Fourier harmonics of the smooth base shape (radius vs angle): 2 lets a
-                                // section be any smooth oval; more would absorb wide muscle bellies
+  double supportTolerance = 0.3;  // the base is the candidate shape (lower envelope, or it or a circle refitted
+                                  // to the skin within this share of the threshold of it) that most of the
+                                  // section follows within that tolerance; 0 = the lower envelope only
 };
 
 // A bump: a run of consecutive polygon vertices (the skin arc over a muscle belly).

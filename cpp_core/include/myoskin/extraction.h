@@ -27,7 +27,7 @@ struct LinkOptions {
   double maxLateralFactor = 0.9;
   double maxAngle = 0.45;       // radians (~26 degrees)
   int maxGap = 2;               // sections that may be missing between two linked bumps
-  int minSections = 5;          // a muscle needs at least this many recognised sections
+  int minSections = 4;          // a muscle needs at least this many significant sections
   bool branches = true;         // join merging/splitting chains with a transition section
   double mergeFactor = 0.5;     // fragments of one belly (chains of a family whose centres come within this
                                 // times their larger mean semi-axis a at the same or a neighbouring plane)
@@ -63,7 +63,16 @@ struct ExtractionOptions {
   std::vector<std::vector<char>> forcedRegions;  // one #V mask per forced muscle: the dominant bump inside
                                                  // the region is extracted even below significance
   double forcedMinProtrusion = 0.0005;         // metres: bumps weaker than this are not forced either
-  double minConfidence = 0.6;                  // drop muscles below this confidence (forced ones are kept)
+  double weakFraction = 0.8;                   // hysteresis: bumps down to this share of the significance
+                                               // threshold are linked too, so a muscle whose bump fades
+                                               // towards its tendons is followed further; a muscle needs
+                                               // link.minSections significant sections. 1 = no hysteresis
+  double minRelative = 0.09;                   // a muscle's bumps must on average stand out at least this share of
+                                               // their sections' mean radius (a belly is large for its limb; soft
+                                               // body contours of thick sections are not); forced ones are kept.
+                                               // Measured: synthetic muscles 0.106-0.33, MakeHuman neutral's
+                                               // flattest contours 0.083-0.085 (0 = off)
+  double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones are kept)
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
 };
 
@@ -88,6 +97,7 @@ struct ExtractionReport {
   int branches = 0;                   // transition sections placed at merges/splits
   int muscles = 0;                    // muscles returned
   int droppedShort = 0, droppedConfidence = 0, droppedRegionLimit = 0;
+  int droppedFlat = 0;                // muscles whose bumps stand out less than minRelative on average
   int droppedOverlap = 0;             // muscles of a dominated family where families overlap
   int forced = 0;                     // muscles from forced regions
   std::vector<SkippedSection> skipped;
@@ -111,6 +121,7 @@ struct SectionBumps {
   CuttingPlane plane;
   std::vector<Ellipse2> ellipses;
   std::vector<double> significance;  // per ellipse (>= 1 significant)
+  std::vector<double> relative;      // per ellipse, optional: the bump's protrusion / the section's mean radius
   std::vector<char> forced;          // per ellipse, optional (empty = none forced)
 };
 
@@ -130,6 +141,7 @@ struct MuscleChain {
   int bone = -1;                 // bone of the plane with the most links
   std::vector<ChainLink> links;
   int realSections = 0;          // links with bump >= 0
+  int strongSections = 0;        // real links whose bump is significant (significance >= 1)
   double confidence = 0.0;       // in [0, 1]
   bool forced = false;
 };
@@ -142,7 +154,7 @@ struct MuscleChain {
 // against a chain that continued (a split), or a chain that ends while its last bump passes the test
 // against a bump another chain took (a merge), gets a transition section — the average ellipse of the
 // two, placed in the plane of the shared-side section — so both branches meet at the junction.
-// Returns every chain (also short ones; filter with realSections >= minSections), sorted by family,
+// Returns every chain (also short ones; filter with strongSections >= minSections), sorted by family,
 // familyIndex, then first plane order, then angle.
 std::vector<MuscleChain> linkBumps(const std::vector<SectionBumps>& sections, const LinkOptions& options = {},
                                    int* branchCount = nullptr);

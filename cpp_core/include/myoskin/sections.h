@@ -38,6 +38,8 @@ struct CuttingPlane {
   Vec3 normal = Vec3::UnitY();
   Vec3 xAxis = Vec3::UnitX();
   Vec3 yAxis = Vec3::UnitZ();
+  double clipRadius = 0.0;  // > 0: the profile keeps only the skin within this distance of the origin (planes
+                            // on shoulder bones, which cut the whole side of the torso), closed by a chord
   std::vector<int> region;  // bones whose skin the profile must stay on (by each vertex's dominant bone);
                             // empty = anywhere. Limbs: the chain, its subtree and its parent; torso
                             // families: every bone outside the limbs (the shoulder also the arm's first bone)
@@ -48,6 +50,11 @@ struct PlaneOptions {
   double endMargin = 0.12;  // fraction of a bone's length left out at each end (joints give no clean loops)
   double bendAngle = 0.26;  // radians: a joint bending more than this inside a chain gets the end margins
   double shoulderStart = 0.35;  // shoulder planes start this fraction along the clavicle chain
+  double shoulderSpacing = 0.5;  // the shoulder family's planes are this times `spacing` apart (the shoulder
+                                 // chain is short: a muscle needs link.minSections sections)
+  double shoulderClip = 1.5;    // planes on shoulder bones clip their profiles to this many times the shoulder
+                                // chain's length around the bone (deltoid, pectoral and trapezius reach that far);
+                                // 0 = no clipping (such profiles then usually leave the region and are skipped)
 };
 
 // Families (planes of one family instance are ordered by CuttingPlane::order):
@@ -73,6 +80,7 @@ struct SectionProfile {
   CuttingPlane plane;
   Points2 polygon;          // #P by 2, counter-clockwise; empty when skipped
   std::vector<char> inMask;  // #P: the point lies on masked skin (all 1 without a mask)
+  std::vector<char> onSkin;  // #P: 1 on the skin, 0 on the chord that closes a clipped profile (empty = all 1)
   double perimeter = 0.0;   // metres
   bool ok = false;
   std::string skipReason;   // why the section was skipped (no loop around the bone, open loop, ...)
@@ -85,8 +93,10 @@ struct ProfileOptions {
 };
 
 // Cut every plane through the skin: the closed loop enclosing the plane origin (the smallest one), kept when
-// at least minRegionShare of it lies on the plane's region (else skipped: armpit, groin, a neighbouring limb),
-// made counter-clockwise and resampled evenly starting on the +X axis. `vertexMask` (#V, optional) marks the
+// at least minRegionShare of it lies on the plane's region (else skipped: armpit, groin, a neighbouring limb).
+// A plane with clipRadius > 0 keeps instead the longest run of the loop that lies on its region and within
+// clipRadius of the origin (at least clipRadius long), closed by a straight chord (onSkin 0 there);
+// made counter-clockwise and resampled evenly starting on the +Y axis. `vertexMask` (#V, optional) marks the
 // profile points on masked skin (inMask); a section with no masked point is skipped. Parallel over planes,
 // deterministic. Throws InputError for a mask of the wrong size.
 std::vector<SectionProfile> cutSections(const Character& character, const std::vector<CuttingPlane>& planes,

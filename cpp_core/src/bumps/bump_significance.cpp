@@ -1,8 +1,13 @@
 // Stage 3c: which merged regions are muscle bumps. The semicircle rule alone turns any smooth convex
 // section into a few large "bumps", so every merged region is measured against a smooth base shape:
-//  - base: a robust lower-envelope Fourier fit of 1/radius^2 vs angle around the area centroid (asymmetric
-//    least squares: points above the base get a small weight); 1/r^2 of a centred ellipse has harmonics 0
-//    and 2 only, so an ellipse or any smooth, gently varying section is its own base and bumps stand out;
+//  - base: a conic (any ellipse, any centre) fitted to the section points around the area centroid. The
+//    candidates are the robust lower envelope (asymmetric least squares: points above it weigh little),
+//    it refitted to the skin it explains, and the lower-envelope circle refitted to the skin it explains
+//    (as a circle, then as a conic). Each is scored by the share of the section it explains within a
+//    tolerance, minus the share where the skin lies inside it (muscles only raise the skin), minus a
+//    small roundness prior; the best wins. An ellipse or any smooth oval section is its own base; two
+//    opposite bellies (biceps and triceps), which make the lower envelope an oval through the valleys
+//    between them, get the circle through the skin between them, so both stay bumps;
 //  - residual = radius - base, lightly smoothed along the polygon (about 1 % of the perimeter);
 //  - a region's apex is its highest residual; its protrusion is the apex's prominence inside the region:
 //    apex minus the higher of the lowest residuals on either side of it within the arc. A region that
@@ -30,11 +35,14 @@ namespace myoskin {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kAboveWeight = 0.02;      // asymmetric least squares weight of points above the base
+constexpr double kAboveWeight = 0.02;      // lower envelope: least squares weight of points above the base
 constexpr int kBaseIterations = 12;        // reweighting passes (stops earlier when the weights settle)
 constexpr double kSmoothFraction = 0.01;   // residual smoothing: Gaussian sigma as a fraction of the perimeter
 constexpr double kGroupKeep = 0.85;        // a group's representative keeps this share of its best protrusion
 constexpr double kMaxOverlap = 0.5;        // bumps overlapping more than this share of the shorter arc merge
+constexpr int kSupportIterations = 6;      // refits of the base to the skin it explains
+constexpr double kSupportMargin = 0.02;    // another candidate must score this much higher than the lower envelope
+constexpr double kRoundness = 0.5;         // score penalty per unit of (longest / shortest base radius - 1)
 
 // Residual of each cleaned polygon vertex above the section's smooth base shape.
 struct Profile {
@@ -48,17 +56,28 @@ struct Profile {
 // Base shape and residual
 // ============================================================================
 
-// Lower-envelope Fourier fit of r(theta) with `harmonics` harmonics; the residual, smoothed.
-Profile measureProfile(const detail::SectionPolygon& s, int harmonics) {
+// Conic base shapes, points relative to the area centroid: Q(p) = c . f(p) = 1 with features
+// f = (x^2, xy, y^2, x, y) for a general conic (any ellipse, any centre) or (x^2 + y^2, x, y) for a circle.
+// Returns the number of features of the model.
+int conicFeatures(bool circle, const Vec2& p, double* f) {
+  if (circle) {
+    f[0] = p.squaredNorm(), f[1] = p.x(), f[2] = p.y();
+    return 3;
+  }
+  f[0] = p.x() * p.x(), f[1] = p.x() * p.y(), f[2] = p.y() * p.y(), f[3] = p.x(), f[4] = p.y();
+  return 5;
+}
+
+// Base shape fits, the residual of the chosen base, smoothed. `supportTolerance` in metres.
+Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance) {
   const int m = s.size();
-  const int k = std::max(0, std::min(harmonics, (m - 1) / 4));
-  const int nb = 2 * k + 1;
   Profile pr;
-  std::vector<double> r(m), theta(m), span(m);
+  std::vector<double> r(m), span(m);
+  std::vector<Vec2> d(m), u(m);
   for (int i = 0; i < m; ++i) {
-    const Vec2 d = (s.points[i] - s.centroid) * s.scale;
-    r[i] = d.norm();
-    theta[i] = std::atan2(d.y(), d.x());
+    d[i] = (s.points[i] - s.centroid) * s.scale;
+    r[i] = d[i].norm();
+    u[i] = r[i] > 0.0 ? Vec2(d[i] / r[i]) : Vec2(1.0, 0.0);
   }
   pr.arcAt.resize(m);
   double arc = 0.0, radiusSum = 0.0;
@@ -73,54 +92,102 @@ Profile measureProfile(const detail::SectionPolygon& s, int harmonics) {
   // Angular span of each vertex, so that the fit is uniform in angle however the points are spaced.
   double spanSum = 0.0;
   for (int i = 0; i < m; ++i) {
-    span[i] = 0.5 * std::abs(std::remainder(theta[s.next(i)] - theta[s.prev(i)], 2.0 * kPi));
+    const double t0 = std::atan2(d[s.prev(i)].y(), d[s.prev(i)].x()), t1 = std::atan2(d[s.next(i)].y(), d[s.next(i)].x());
+    span[i] = 0.5 * std::abs(std::remainder(t1 - t0, 2.0 * kPi));
     spanSum += span[i];
   }
   const double floorSpan = 1e-3 * spanSum / m + 1e-300;
   for (double& w : span) w = std::max(w, floorSpan);
 
-  // Basis: 1, cos(j t), sin(j t) for j = 1..k.
-  Eigen::MatrixXd basis(m, nb);
-  for (int i = 0; i < m; ++i) {
-    basis(i, 0) = 1.0;
-    const double c1 = std::cos(theta[i]), s1 = std::sin(theta[i]);
-    double c = 1.0, sn = 0.0;
-    for (int j = 1; j <= k; ++j) {
-      const double cn = c * c1 - sn * s1;
-      sn = sn * c1 + c * s1;
-      c = cn;
-      basis(i, 2 * j - 1) = c;
-      basis(i, 2 * j) = sn;
-    }
-  }
-  // The series is fitted to 1 / r^2, which for any ellipse centred at the centroid is exactly
-  // cos^2/a^2 + sin^2/b^2 (harmonics 0 and 2): with 2 harmonics every such ellipse is its own base.
-  std::vector<double> q(m);
-  for (int i = 0; i < m; ++i) q[i] = 1.0 / std::max(r[i] * r[i], 1e-300);
-  std::vector<double> base(m, 0.0);
-  std::vector<char> above(m, 0);
-  Eigen::MatrixXd normal(nb, nb);
-  Eigen::VectorXd rhs(nb);
-  for (int it = 0; it < kBaseIterations; ++it) {
-    normal.setZero();
-    rhs.setZero();
+  // Weighted algebraic least squares of Q(p) = 1, then the base radius on each vertex's ray from the
+  // centroid: Q(t u) = a t^2 + b t = 1, t = 2 / (b + sqrt(b^2 + 4 a)). False when degenerate or when a ray
+  // misses the conic (strict), else such vertices keep their own radius.
+  auto fit = [&](bool circle, const std::vector<double>& weight, std::vector<double>& base, bool strict) {
+    double f[5];
+    const int nb = conicFeatures(circle, Vec2(1, 0), f);
+    Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(nb, nb);
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(nb);
     for (int i = 0; i < m; ++i) {
-      const double w = span[i] * (above[i] ? kAboveWeight : 1.0);
-      const auto row = basis.row(i);
-      normal.selfadjointView<Eigen::Lower>().rankUpdate(row.transpose(), w);
-      rhs.noalias() += (w * q[i]) * row.transpose();
+      const double w = span[i] * weight[i];
+      if (w <= 0.0) continue;
+      conicFeatures(circle, d[i], f);
+      const Eigen::Map<const Eigen::VectorXd> row(f, nb);
+      normal.selfadjointView<Eigen::Lower>().rankUpdate(row, w);
+      rhs.noalias() += w * row;
     }
-    normal.diagonal().array() += 1e-12 * normal(0, 0);
-    const Eigen::VectorXd coef = normal.selfadjointView<Eigen::Lower>().ldlt().solve(rhs);
-    bool changed = false;
+    if (!(normal.diagonal().maxCoeff() > 0.0)) return false;
+    normal.diagonal().array() += 1e-12 * normal.diagonal().maxCoeff();
+    const Eigen::VectorXd c = normal.selfadjointView<Eigen::Lower>().ldlt().solve(rhs);
     for (int i = 0; i < m; ++i) {
-      const double fit = basis.row(i).dot(coef);
-      base[i] = fit > 0.0 ? 1.0 / std::sqrt(fit) : r[i];
-      const char up = r[i] > base[i];
-      changed |= up != above[i];
-      above[i] = up;
+      const Vec2& e = u[i];
+      const double qa = circle ? c[0] : c[0] * e.x() * e.x() + c[1] * e.x() * e.y() + c[2] * e.y() * e.y();
+      const double qb = circle ? c[1] * e.x() + c[2] * e.y() : c[3] * e.x() + c[4] * e.y();
+      const double disc = qb * qb + 4.0 * qa;
+      const double den = disc >= 0.0 ? qb + std::sqrt(disc) : -1.0;
+      if (!(den > 0.0) || !std::isfinite(den)) {
+        if (strict) return false;
+        base[i] = r[i];
+      } else {
+        base[i] = 2.0 / den;
+      }
     }
-    if (!changed) break;
+    return true;
+  };
+  // Lower envelope: asymmetric least squares (points above the base weigh little).
+  auto lowerEnvelope = [&](bool circle) {
+    std::vector<double> base(r), weight(m, 1.0);
+    std::vector<char> above(m, 0);
+    for (int it = 0; it < kBaseIterations; ++it) {
+      if (!fit(circle, weight, base, false)) return r;
+      bool changed = false;
+      for (int i = 0; i < m; ++i) {
+        const char up = r[i] > base[i];
+        changed |= up != above[i];
+        above[i] = up;
+        weight[i] = up ? kAboveWeight : 1.0;
+      }
+      if (!changed) break;
+    }
+    return base;
+  };
+  // Share of the angle where the skin lies within the tolerance of a base.
+  const double tol = supportTolerance * s.scale;
+  auto support = [&](const std::vector<double>& base) {
+    double sum = 0.0;
+    for (int i = 0; i < m; ++i) sum += std::abs(r[i] - base[i]) <= tol ? span[i] : 0.0;
+    return sum / spanSum;
+  };
+  // A base's score: the share it explains minus the share where the skin lies inside it (muscles only
+  // raise the skin above the muscle-free limb, so skin well inside a base speaks against it).
+  auto score = [&](const std::vector<double>& base) {
+    double sum = 0.0;
+    for (int i = 0; i < m; ++i) sum += std::abs(r[i] - base[i]) <= tol ? span[i] : r[i] < base[i] ? -span[i] : 0.0;
+    const auto [lo, hi] = std::minmax_element(base.begin(), base.end());
+    return sum / spanSum - kRoundness * (*hi / std::max(*lo, 1e-300) - 1.0);
+  };
+  // Refit to the vertices the base explains (within the tolerance) while that explains more.
+  auto refine = [&](std::vector<double> base, bool circle) {
+    std::vector<double> weight(m), next(m);
+    for (int it = 0; it < kSupportIterations; ++it) {
+      int count = 0;
+      for (int i = 0; i < m; ++i) count += (weight[i] = std::abs(r[i] - base[i]) <= tol ? 1.0 : 0.0) > 0.0;
+      if (count < 10 || !fit(circle, weight, next, true) || !(support(next) >= support(base))) break;
+      base.swap(next);
+    }
+    return base;
+  };
+  // Candidates: the conic lower envelope; it refined to its support; the lower-envelope circle refined to
+  // its support as a circle and then as a conic. Opposite bellies (biceps and triceps) make the envelope an
+  // oval through the four valleys between them; a circle refined to the skin between the bellies explains
+  // more of the section and keeps them as bumps. The candidate that explains most of the section wins.
+  std::vector<double> base = lowerEnvelope(false);
+  if (tol > 0.0) {
+    double best = score(base);
+    const std::vector<double> circle = refine(lowerEnvelope(true), true);
+    for (std::vector<double> cand : {refine(base, false), circle, refine(circle, false)}) {
+      const double sup = score(cand);
+      if (sup > best + kSupportMargin) best = sup, base.swap(cand);
+    }
   }
 
   // Smooth the residual with repeated [1 2 1] / 4 passes (each adds half a sample's variance).
@@ -230,8 +297,18 @@ std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options,
   const detail::TriangleAdjacency adj = detail::buildAdjacency(s, triangulation->triangles);
   const std::vector<detail::MergedRegion> regions =
       detail::semicircleRegions(s, adj, std::max(0.0, options.semicircleTolerance), options.absorbJunctions);
-  const Profile pr = measureProfile(s, options.baseHarmonics);
-  const double threshold = std::max(options.minProtrusion, options.minRelativeProtrusion * pr.meanRadius);
+  double meanRadius = 0.0;  // the threshold needs the mean radius first
+  {
+    double arc = 0.0;
+    for (int i = 0; i < s.size(); ++i) {
+      const double len = (s.points[s.next(i)] - s.points[i]).norm();
+      arc += len;
+      meanRadius += 0.5 * ((s.points[i] - s.centroid).norm() + (s.points[s.next(i)] - s.centroid).norm()) * len;
+    }
+    meanRadius = arc > 0.0 ? meanRadius / arc : 0.0;
+  }
+  const double threshold = std::max(options.minProtrusion, options.minRelativeProtrusion * meanRadius);
+  const Profile pr = measureProfile(s, options.supportTolerance * threshold);
 
   // Significant candidates, strongest first.
   std::vector<Candidate> cands;

@@ -94,7 +94,8 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
   if (hi - lo >= 4) {
     arc = std::vector<Vec2>(arc.begin() + lo, arc.begin() + hi + 1);
     s = std::vector<double>(s.begin() + lo, s.begin() + hi + 1);
-    for (double& x : s) x -= s.front();
+    const double s0 = s.front();  // (a copy: s.front() itself becomes 0 in the loop)
+    for (double& x : s) x -= s0;
     apexAt -= static_cast<int>(lo);
   }
   const double length = s.back();
@@ -130,15 +131,12 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
     }
   }
   if (!fitted) {
-    // Fallback: half the chord wide, as deep as the bump is high, centred beneath the apex.
+    // Fallback: a round belly half the chord wide, centred beneath the apex. The skin shows only the top of
+    // a partly buried belly, so its height says little about the belly's depth.
     const double half = coreHalf;
-    double rise = 0.0;
-    for (const Vec2& p : arc) rise = std::max(rise, (p - arc.front()).dot(v));
-    const double b = std::clamp(rise, 0.5 * half, half);
-    e.center = apex - b * v;
-    e.a = std::max(half, b);
-    e.b = std::min(half, b);
-    e.angle = half >= b ? std::atan2(u.y(), u.x()) : std::atan2(v.y(), v.x());
+    e.center = apex - half * v;
+    e.a = e.b = half;
+    e.angle = std::atan2(u.y(), u.x());
   }
   // Muscle bellies are round-ish in section: a flatter fit (a shallow arc) is made at most maxAspect : 1
   // by deepening it, keeping its top where it touches the skin.

@@ -26,6 +26,7 @@ struct SectionWork {
   std::string reason;
   std::vector<Ellipse2> ellipses;
   std::vector<double> significance;
+  std::vector<double> relative;
   std::vector<int> forcedRegion;  // per ellipse: forced region index or -1
 };
 
@@ -111,7 +112,24 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     }
     try {
       const SectionTriangulation tri = triangulateSection(prof.polygon);
-      std::vector<Bump> bumps = findBumps(prof.polygon, options.bumps, &tri);
+      // Hysteresis: bumps down to weakFraction of the threshold, significance still relative to the threshold.
+      const double weak = std::clamp(options.weakFraction, 1e-3, 1.0);
+      BumpOptions low = options.bumps;
+      low.minProtrusion *= weak;
+      low.minRelativeProtrusion *= weak;
+      low.supportTolerance /= weak;  // the same tolerance in metres
+      std::vector<Bump> bumps = findBumps(prof.polygon, low, &tri);
+      for (Bump& b : bumps) b.significance *= weak;
+      if (!prof.onSkin.empty())  // a clipped profile: bumps lie on the skin, not on the closing chord
+        bumps.erase(std::remove_if(bumps.begin(), bumps.end(),
+                                   [&](const Bump& b) {
+                                     const int np = static_cast<int>(prof.polygon.rows());
+                                     for (int i = b.first;; i = (i + 1) % np) {
+                                       if (!prof.onSkin[i]) return true;
+                                       if (i == b.last) return false;
+                                     }
+                                   }),
+                    bumps.end());
       if (!options.vertexMask.empty())  // extract only within the mask: the bump's apex must lie on it
         bumps.erase(std::remove_if(bumps.begin(), bumps.end(), [&](const Bump& b) { return !prof.inMask[b.apex]; }),
                     bumps.end());
@@ -158,14 +176,20 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
         }
       }
       // A muscle lies beside the bone, not around it: an ellipse centred within a quarter of the section's
-      // mean radius of the bone describes the whole section, not a belly.
+      // mean radius of the bone describes the whole section, not a belly (on limbs, which the bone centres).
       const double meanRadius = prof.polygon.rowwise().norm().mean();
       for (size_t b = 0; b < bumps.size(); ++b) {
         const Ellipse2 e = fitBumpEllipse(prof.polygon, bumps[b], tri);
         if (!std::isfinite(e.center.x()) || !std::isfinite(e.center.y()) || !(e.a > 0) || !(e.b > 0)) continue;
-        if (e.center.norm() < 0.25 * meanRadius && forced[b] < 0) continue;
+        if (forced[b] < 0) {
+          if (prof.onSkin.empty() && e.center.norm() < 0.25 * meanRadius) continue;
+          // A clipped (shoulder) profile is not centred on its bone: there the belly must not enclose the bone.
+          const Vec2 local = Eigen::Rotation2Dd(-e.angle) * (-e.center);
+          if (!prof.onSkin.empty() && std::pow(local.x() / e.a, 2) + std::pow(local.y() / e.b, 2) <= 1.0) continue;
+        }
         w.ellipses.push_back(e);
         w.significance.push_back(bumps[b].significance);
+        w.relative.push_back(meanRadius > 0 ? bumps[b].protrusion / meanRadius : 0.0);
         w.forcedRegion.push_back(forced[b]);
       }
       w.ok = true;
@@ -186,6 +210,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     s.plane = profiles[i].plane;
     s.ellipses = work[i].ellipses;
     s.significance = work[i].significance;
+    s.relative = work[i].relative;
     for (int f : work[i].forcedRegion) s.forced.push_back(f >= 0);
     for (double sg : s.significance) rep.bumps += sg >= 1.0;
     forcedOf.push_back(work[i].forcedRegion);
@@ -215,9 +240,20 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       kept.push_back(std::move(c));
       continue;
     }
-    if (c.realSections < options.link.minSections) {
+    if (c.strongSections < options.link.minSections) {
       ++rep.droppedShort;
       continue;
+    }
+    if (options.minRelative > 0) {  // the bumps' mean height relative to their sections' size
+      double sum = 0.0;
+      int count = 0;
+      for (const ChainLink& l : c.links)
+        if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].relative.size()))
+          sum += sections[l.section].relative[l.bump], ++count;
+      if (count == 0 || sum < options.minRelative * count) {
+        ++rep.droppedFlat;
+        continue;
+      }
     }
     if (c.confidence < options.minConfidence) {
       ++rep.droppedConfidence;

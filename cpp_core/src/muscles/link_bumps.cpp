@@ -155,11 +155,17 @@ std::vector<MuscleChain> linkBumps(const std::vector<SectionBumps>& sections, co
       std::vector<std::tuple<double, int, int>> pairs;
       for (int oi = 0; oi < static_cast<int>(open.size()); ++oi) {
         if (open[oi].closed || open[oi].lastOrder >= order) continue;
-        const ChainLink& tail = chains[open[oi].chain].links.back();
+        const std::vector<ChainLink>& links = chains[open[oi].chain].links;
+        const ChainLink& tail = links.back();
         const SectionBumps& ts = sections[tail.section];
+        // The bump before the tail too, so a chain cannot turn from one belly onto its neighbour in a few
+        // small steps (the biceps sliding onto the brachialis): at most one turn per maxAngle.
+        const ChainLink* before = links.size() >= 2 && links[links.size() - 2].bump >= 0 ? &links[links.size() - 2] : nullptr;
         for (int b = 0; b < nb; ++b) {
           const double c = linkCost(ts, tail.ellipse, s, s.ellipses[b], options);
-          if (c >= 0) pairs.emplace_back(c, oi, b);
+          if (c < 0) continue;
+          if (before && linkCost(sections[before->section], before->ellipse, s, s.ellipses[b], options) < 0) continue;
+          pairs.emplace_back(c, oi, b);
         }
       }
       std::sort(pairs.begin(), pairs.end());
@@ -230,11 +236,13 @@ std::vector<MuscleChain> linkBumps(const std::vector<SectionBumps>& sections, co
 
   mergeFragments(chains, sections, options);
   for (MuscleChain& ch : chains) {
-    ch.realSections = 0;
+    ch.realSections = ch.strongSections = 0;
     std::map<int, int> boneVotes;
     for (const ChainLink& l : ch.links) {
       if (l.bump >= 0) {
         ++ch.realSections;
+        const std::vector<double>& sig = sections[l.section].significance;
+        ch.strongSections += l.bump >= static_cast<int>(sig.size()) || sig[l.bump] >= 1.0;
         if (!sections[l.section].forced.empty() && sections[l.section].forced[l.bump]) ch.forced = true;
       }
       ++boneVotes[sections[l.section].plane.bone];

@@ -51,23 +51,25 @@ bool enclosesOrigin(const std::vector<Vec2>& pts) {
 // Resampling
 // ============================================================================
 
-// N points evenly spaced by arc length along the closed CCW loop, starting where it crosses the +X axis.
+// N points evenly spaced by arc length along the closed CCW loop, starting where it crosses the +Y axis
+// (nearest the origin). The +Y axis is where mirrored limbs' frames agree (their X axes are mirrored and
+// negated), so a mirrored section is resampled at exactly the mirrored points.
 // `source` receives, per output point, the loop index of the segment it lies on.
 Points2 resample(const std::vector<Vec2>& pts, int count, std::vector<int>& source) {
   const size_t n = pts.size();
   size_t start = 0;
-  double bestX = INFINITY;
+  double bestY = INFINITY;
   for (size_t i = 0; i < n; ++i) {
     const Vec2 &a = pts[i], &b = pts[(i + 1) % n];
-    if (a.y() < 0 && b.y() >= 0) {
-      const double x = a.x() + (b.x() - a.x()) * (-a.y()) / (b.y() - a.y());
-      if (x > 0 && x < bestX) bestX = x, start = i;
+    if (a.x() > 0 && b.x() <= 0) {
+      const double y = a.y() + (b.y() - a.y()) * a.x() / (a.x() - b.x());
+      if (y > 0 && y < bestY) bestY = y, start = i;
     }
   }
   std::vector<Vec2> ring;
   std::vector<int> ringIndex;
   const Vec2 &a0 = pts[start], &b0 = pts[(start + 1) % n];
-  const double t0 = std::isfinite(bestX) && b0.y() != a0.y() ? (-a0.y()) / (b0.y() - a0.y()) : 0.0;
+  const double t0 = std::isfinite(bestY) && b0.x() != a0.x() ? a0.x() / (a0.x() - b0.x()) : 0.0;
   ring.push_back(a0 + t0 * (b0 - a0));
   ringIndex.push_back(static_cast<int>(start));
   for (size_t k = 1; k <= n; ++k) {
@@ -140,24 +142,85 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
     perimeter += len;
     if (inRegion(i) && inRegion((i + 1) % n)) onRegion += len;
   }
+  if (loop.area < 0) {
+    std::reverse(loop.points.begin(), loop.points.end());
+    std::reverse(loop.edges.begin(), loop.edges.end());
+  }
+  std::vector<char> skin;  // per loop point: 0 on the closing chord of a clipped profile
+  if (plane.clipRadius > 0) {
+    // Shoulder planes cut the whole side of the torso: keep the longest run on the region near the origin.
+    std::vector<char> keep(n);
+    for (size_t i = 0; i < n; ++i) keep[i] = loop.points[i].norm() <= plane.clipRadius && inRegion(i);
+    size_t bestStart = 0, bestLen = 0;
+    bool all = true;
+    for (size_t i = 0; i < n; ++i) all &= keep[i] != 0;
+    if (!all) {
+      for (size_t i = 0; i < n; ++i) {
+        if (!keep[i] || keep[(i + n - 1) % n]) continue;  // runs start after a dropped point
+        size_t len = 0;
+        while (len < n && keep[(i + len) % n]) ++len;
+        if (len > bestLen) bestLen = len, bestStart = i;
+      }
+      std::vector<Vec2> pts;
+      std::vector<std::array<int, 2>> edges;
+      double arc = 0.0;
+      for (size_t k = 0; k < bestLen; ++k) {
+        const size_t i = (bestStart + k) % n;
+        if (k > 0) arc += (loop.points[i] - pts.back()).norm();
+        pts.push_back(loop.points[i]);
+        edges.push_back(loop.edges[i]);
+        skin.push_back(1);
+      }
+      if (bestLen < 3 || arc < plane.clipRadius) {
+        prof.perimeter = perimeter;
+        prof.skipReason = "too little skin near the shoulder on this plane's region (" + std::to_string(arc) + " m)";
+        return prof;
+      }
+      // The chord back to the start, about as finely sampled as the skin.
+      const Vec2 a = pts.back(), b = pts.front();
+      const int steps = std::max(2, static_cast<int>(std::ceil((b - a).norm() / std::max(arc / bestLen, 1e-6))));
+      for (int k = 1; k < steps; ++k) {
+        pts.push_back(a + (b - a) * (static_cast<double>(k) / steps));
+        edges.push_back(k * 2 < steps ? edges[bestLen - 1] : edges[0]);
+        skin.push_back(0);
+      }
+      loop.points = std::move(pts);
+      loop.edges = std::move(edges);
+      double area = 0.0;
+      for (size_t i = 0; i < loop.points.size(); ++i) {
+        const Vec2 &p0 = loop.points[i], &p1 = loop.points[(i + 1) % loop.points.size()];
+        area += 0.5 * (p0.x() * p1.y() - p1.x() * p0.y());
+      }
+      if (!(area > 0)) {
+        prof.perimeter = perimeter;
+        prof.skipReason = "the skin near the shoulder does not bound a region on this plane";
+        return prof;
+      }
+      perimeter = 0.0;
+      for (size_t i = 0; i < loop.points.size(); ++i)
+        perimeter += (loop.points[(i + 1) % loop.points.size()] - loop.points[i]).norm();
+      onRegion = perimeter;
+    }
+  }
   prof.perimeter = perimeter;
   if (perimeter < o.minPerimeter) {
     prof.skipReason = "the loop around the bone is too small (" + std::to_string(perimeter) + " m)";
     return prof;
   }
-  if (onRegion < o.minRegionShare * perimeter) {
+  if (skin.empty() && onRegion < o.minRegionShare * perimeter) {
     prof.skipReason = "the loop leaves the bone's skin region (armpit, groin or a neighbouring part): " +
                       std::to_string(static_cast<int>(100 * onRegion / perimeter)) + " % on it";
     return prof;
-  }
-  if (loop.area < 0) {
-    std::reverse(loop.points.begin(), loop.points.end());
-    std::reverse(loop.edges.begin(), loop.edges.end());
   }
   const int count = o.samples > 0 ? o.samples : std::clamp(static_cast<int>(std::lround(perimeter / 0.002)), 48, 400);
   std::vector<int> source;
   prof.polygon = resample(loop.points, count, source);
   prof.inMask.assign(count, 1);
+  if (!skin.empty()) {  // a resampled point is on the skin when the loop segment it lies on is
+    prof.onSkin.assign(count, 1);
+    for (int k = 0; k < count; ++k)
+      prof.onSkin[k] = skin[source[k]] && skin[(source[k] + 1) % skin.size()];
+  }
   if (mask) {
     bool any = false;
     for (int k = 0; k < count; ++k) {

@@ -60,9 +60,10 @@ Vec3 transportAxis(const Vec3& previous, const Vec3& normal, const Vec3& hint) {
 
 // Perpendicular planes along a chain, `spacing` apart from `startAt` (metres along the chain) to its end,
 // with end margins at the chain's ends and around joints bending more than bendAngle.
+// Planes on the bones in `clipBones` get clipRadius (their profiles are clipped near the origin).
 void chainPlanes(const Skeleton& sk, const std::vector<int>& chain, const std::string& family, int familyIndex,
                  double spacing, double startAt, const PlaneOptions& o, const std::vector<int>& region,
-                 std::vector<CuttingPlane>& out) {
+                 const std::set<int>& clipBones, double clipRadius, std::vector<CuttingPlane>& out) {
   std::vector<double> start(chain.size() + 1, 0.0);
   for (size_t k = 0; k < chain.size(); ++k) start[k + 1] = start[k] + sk.bones[chain[k]].length();
   const double total = start.back();
@@ -102,6 +103,7 @@ void chainPlanes(const Skeleton& sk, const std::vector<int>& chain, const std::s
     p.xAxis = xAxis;
     p.yAxis = p.normal.cross(p.xAxis).normalized();
     p.region = region;
+    if (clipBones.count(chain[k])) p.clipRadius = clipRadius;
     out.push_back(std::move(p));
   }
 }
@@ -137,15 +139,18 @@ std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const st
     // An arm continues up through its shoulder bones (clavicle, shoulder): the deltoid spans the joint.
     std::vector<int> chain = limb;
     double shoulderLength = 0.0;
+    std::set<int> shoulderBones;
     for (int p = sk.bones[chain.front()].parent; p >= 0 && roles[p] == BoneRole::Shoulder; p = sk.bones[p].parent) {
       chain.insert(chain.begin(), p);
+      shoulderBones.insert(p);
       shoulderLength += sk.bones[p].length();
     }
     std::set<int> region;
     addSubtree(sk, chain.front(), region);
     if (sk.bones[chain.front()].parent >= 0) region.insert(sk.bones[chain.front()].parent);
     chainPlanes(sk, chain, "limb", index++, spacing, options.shoulderStart * shoulderLength, options,
-                std::vector<int>(region.begin(), region.end()), planes);
+                std::vector<int>(region.begin(), region.end()), shoulderBones,
+                options.shoulderClip * shoulderLength, planes);
   }
   index = 0;
   for (const auto& chain : chainsOf(sk, roles, BoneRole::Shoulder)) {
@@ -153,12 +158,13 @@ std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const st
     for (int c : sk.children(chain.back())) region.insert(c);  // the arm's first bone
     double length = 0;
     for (int b : chain) length += sk.bones[b].length();
-    chainPlanes(sk, chain, "shoulder", index++, spacing, options.shoulderStart * length, options,
-                std::vector<int>(region.begin(), region.end()), planes);
+    chainPlanes(sk, chain, "shoulder", index++, spacing * options.shoulderSpacing, options.shoulderStart * length, options,
+                std::vector<int>(region.begin(), region.end()), std::set<int>(chain.begin(), chain.end()),
+                options.shoulderClip * length, planes);
   }
   index = 0;
   for (const auto& chain : chainsOf(sk, roles, BoneRole::Neck))
-    chainPlanes(sk, chain, "neck", index++, spacing, 0.0, options, torsoRegion, planes);
+    chainPlanes(sk, chain, "neck", index++, spacing, 0.0, options, torsoRegion, {}, 0.0, planes);
 
   // Abdomen: the spine chain (pelvis bones below it do not count for the axis).
   const auto spines = chainsOf(sk, roles, BoneRole::Spine);
