@@ -307,6 +307,23 @@ def test_edits_after_bind_ask_for_a_new_bind():
     assert abs(np.asarray(moved.insertion)[2] - np.array(state.muscles[0].insertion_locator.location)[2]) < 1e-9
 
 
+def test_two_bound_characters_in_one_scene():
+    arm1, skin1, state1, _ = bound_arm(seed=1)
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=2) == {'FINISHED'}
+    skin2 = bpy.context.view_layer.objects.active
+    arm2 = skin2.parent
+    arm2.location = (1.0, 0.0, 0.0)
+    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'} and bpy.ops.myoskin.bind() == {'FINISHED'}
+    assert state1.collection != arm2.myoskin.collection
+    flex(arm1, 100.0)
+    flex(arm2, 50.0)
+    bpy.context.view_layer.update()
+    for arm, skin in ((arm1, skin1), (arm2, skin2)):
+        assert np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, arm.myoskin)).max() < 1e-5
+        for item in arm.myoskin.muscles:
+            assert item.surface.parent == arm and item.surface.name in arm.myoskin.collection.objects
+
+
 # ------------------------------------------------------------------------------------------------
 # Unbind, bake, export
 # ------------------------------------------------------------------------------------------------
