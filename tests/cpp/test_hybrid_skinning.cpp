@@ -276,11 +276,20 @@ TEST(HybridWeights, MusclesTakeWeightOnlyFromTheBonesTheySpan) {
   const ArmRig& a = armRig();
   const Character& c = a.character;
   const Skeleton& sk = c.skeleton;
-  const MuscleRig rig(sk, a.muscles);
+  // Every muscle attached at both ends to the bone of its region (upper_arm or forearm), but the biceps,
+  // which keeps its attachments across the elbow.
+  std::vector<Muscle> muscles = a.muscles;
+  for (size_t m = 0; m < muscles.size(); ++m) {
+    if (static_cast<int>(m) == a.biceps) continue;
+    const std::string bone = muscles[m].region.substr(0, muscles[m].region.find('.'));
+    ASSERT_GE(sk.find(bone), 0) << muscles[m].region;
+    muscles[m].origin.bone = muscles[m].insertion.bone = bone;
+  }
+  const MuscleRig rig(sk, muscles);
   const SkinWeights w = computeHybridWeights(c.mesh, c.weights, rig);
   const int nb = sk.numBones();
   auto spans = [&](int m, int bone) {
-    const int o = sk.find(a.muscles[m].origin.bone), i = sk.find(a.muscles[m].insertion.bone);
+    const int o = sk.find(muscles[m].origin.bone), i = sk.find(muscles[m].insertion.bone);
     const int lo = std::min(o, i), hi = std::max(o, i);  // the arm is one chain: bones lo..hi
     return bone >= lo && bone <= hi;
   };

@@ -40,7 +40,7 @@ struct HybridWeightOptions {
   int smoothingIterations = 24;  // Laplacian smoothing passes (one edge ring each) of each muscle's weight
   // Fraction of the muscle's rest action path (origin -> insertion) at each end over which its weight
   // fades to 0, so the skin over the tendons and attachments follows the bones (0 = no fade).
-  double endTaper = 0.3;
+  double endTaper = 0.5;
 };
 
 // Combined weights (#V by maxInfluences over combined joints [0, #B + #J)) from the skeleton weights
