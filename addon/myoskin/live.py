@@ -48,6 +48,7 @@ class LiveRig:
             raise ValueError(f"'{arm_obj.name}': the bind record's joints do not match its muscles: bind again")
         self.surface_names = record.get("surfaces", [])
         self.last_pose = None
+        self.last_surface_pose = None  # baked rigs: the pose the muscle surfaces were last written for
         # FK offsets: pose_i = pose_parent @ (rest_parent^-1 @ rest_i) @ basis_i (rest_i for a root bone)
         rest = np.asarray(record["bone_rest"], dtype=np.float64)
         self.parent_index = [int(p) for p in record["bone_parents"]]
@@ -177,6 +178,25 @@ def bound_armatures(scene):
     return [o for o in scene.objects if o.type == 'ARMATURE' and o.myoskin.bound and o.myoskin.live]
 
 
+def baked_armatures(scene):
+    """Bound armatures whose baked Action plays (live update off): only their muscle surfaces need us."""
+    return [o for o in scene.objects if o.type == 'ARMATURE' and o.myoskin.bound and not o.myoskin.live]
+
+
+def update_surfaces(arm_obj, depsgraph=None):
+    """Live update off: the baked Action moves the joints natively; the muscle surfaces (mesh objects that
+    are not skinned) follow the evaluated skeleton here. Returns True when it wrote them."""
+    if not muscles_visible(arm_obj):
+        return False
+    live = live_rig(arm_obj)
+    pose = evaluated_pose(arm_obj, live, depsgraph)
+    if live.last_surface_pose is not None and np.abs(pose - live.last_surface_pose).max() <= PREDICT_TOLERANCE:
+        return False
+    write_surfaces(arm_obj, live, live.rig.evaluate(pose, with_surfaces=True)["surfaces"])
+    live.last_surface_pose = pose
+    return True
+
+
 # ------------------------------------------------------------------------------------------------
 # Prediction of the skeleton's pose from F-curves (frame_change_pre)
 # ------------------------------------------------------------------------------------------------
@@ -285,8 +305,8 @@ def on_update(scene, depsgraph=None):
     global _busy
     if _busy or not core_loader.available():
         return
-    armatures = bound_armatures(scene)
-    if not armatures:
+    armatures, baked = bound_armatures(scene), baked_armatures(scene)
+    if not armatures and not baked:
         return
     _busy = True
     try:
@@ -296,6 +316,11 @@ def on_update(scene, depsgraph=None):
             except Exception as e:  # noqa: BLE001  (a handler must never raise into Blender)
                 print(f"Myoskin: live update of '{arm.name}' stopped: {e}")
                 arm.myoskin["live"] = False
+        for arm in baked:
+            try:
+                update_surfaces(arm, depsgraph)
+            except Exception as e:  # noqa: BLE001
+                print(f"Myoskin: muscle surfaces of '{arm.name}' not updated: {e}")
     finally:
         _busy = False
 

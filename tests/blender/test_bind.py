@@ -382,6 +382,41 @@ def test_bake_action_plays_without_the_handlers():
     assert np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max() < 1e-5
 
 
+def test_baked_action_moves_the_muscle_surfaces_too():
+    """Live update off (baked): the joints play from the Action and the muscle surfaces still follow."""
+    arm, skin, state, _ = bound_arm()
+    scene = bpy.context.scene
+    pb = arm.pose.bones["forearm"]
+    pb.rotation_mode = 'XYZ'
+    for frame, deg in ((1, 0.0), (5, 120.0)):
+        pb.rotation_euler = (np.radians(deg), 0.0, 0.0)
+        pb.keyframe_insert("rotation_euler", frame=frame)
+    assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=5) == {'FINISHED'}
+    assert not state.live
+    live = module("live")
+    enabled = [m for m in state.muscles if m.enabled]
+
+    def surfaces_now():
+        out = []
+        for item in enabled:
+            co = np.empty(3 * len(item.surface.data.vertices), dtype=np.float32)
+            item.surface.data.vertices.foreach_get("co", co)
+            out.append(co.reshape(-1, 3).astype(np.float64))
+        return out
+
+    seen = []
+    for frame in (5, 1, 5):
+        scene.frame_set(frame)
+        rig = live.live_rig(arm)
+        pose = live.evaluated_pose(arm, rig, bpy.context.evaluated_depsgraph_get())
+        expected = rig.rig.evaluate(pose, with_surfaces=True)["surfaces"]
+        got = surfaces_now()
+        for item, g, e in zip(enabled, got, expected):
+            assert np.abs(g - e).max() < 1e-5, (frame, item.name)
+        seen.append(got)
+    assert max(np.abs(a - b).max() for a, b in zip(seen[0], seen[1])) > 1e-3  # they moved between frames
+
+
 def test_fk_playback_needs_one_evaluation_ik_is_corrected():
     """F-curve-only skeletons are predicted in frame_change_pre (no second evaluation); an animated IK
     target is corrected from the evaluated pose (exact, no lag)."""
