@@ -119,6 +119,9 @@ class MyoskinRigState(bpy.types.PropertyGroup):
     live: BoolProperty(name="Live Update", default=True, update=_live_changed,
                        description="Move muscle joints (and the muscle surfaces) whenever the skeleton moves; "
                                    "off: the baked Action plays (also without the add-on)")
+    auto_rebind: BoolProperty(name="Auto Rebind", default=True,
+                              description="When a locator of a bound muscle moves, bind again once it is still, "
+                                          "so the muscle joints follow (Object Mode)")
     bind_text: PointerProperty(name="Bind Record", type=bpy.types.Text,
                                description="<armature>.bind.json: what Bind built (live update rebuilds from it)")
 

@@ -307,6 +307,42 @@ def test_edits_after_bind_ask_for_a_new_bind():
     assert abs(np.asarray(moved.insertion)[2] - np.array(state.muscles[0].insertion_locator.location)[2]) < 1e-9
 
 
+def test_locator_move_on_a_bound_rig_binds_again_when_still():
+    """Auto Rebind: the locator watcher schedules a timer; once the locators are still it binds again, so the
+    muscle's joint bones follow the new insertion, the rest pose stays exact and Unbind still restores the
+    original weights. (Timers do not run inside a background script: the test calls the timer itself.)"""
+    arm, skin, state, original = bound_arm()
+    handlers = module("handlers")
+    first = joint_names(state)[0]
+    muscle0 = first.rsplit(".j", 1)[0]
+    names0 = [n for n in joint_names(state) if n.rsplit(".j", 1)[0] == muscle0]
+    before = {n: np.array(arm.data.bones[n].matrix_local) for n in names0}
+    item = next(m for m in state.muscles if m.name == muscle0)
+    item.insertion_locator.location.z += 0.015
+    bpy.context.view_layer.update()
+    assert state.dirty and bpy.app.timers.is_registered(handlers.rebind_pending)
+    assert handlers.rebind_pending() is not None  # not still long enough yet: the timer waits
+    assert handlers.rebind_pending(force=True) is None
+    assert not state.dirty and state.bound
+    after = {n: np.array(arm.data.bones[n].matrix_local) for n in names0}
+    assert max(np.abs(after[n] - before[n]).max() for n in names0) > 1e-3  # the joints moved
+    record = core().muscles_from_json(json.loads(state.bind_text.as_string())["muscles"])
+    moved = next(m for m in record if m.name == muscle0)
+    assert abs(np.asarray(moved.insertion)[2] - np.array(item.insertion_locator.location)[2]) < 1e-9
+    io = module("blender_io")
+    assert np.abs(io.evaluated_vertices(skin) - io.mesh_vertices(skin.data)).max() < 1e-6  # rest exact
+    flex(arm, 80.0)
+    bpy.context.view_layer.update()
+    assert np.abs(io.evaluated_vertices(skin) - core_skin(arm, skin, state)).max() < 1e-5
+    # Auto Rebind off: the move only marks the rig
+    state.auto_rebind = False
+    flex(arm, 0.0)
+    item.insertion_locator.location.z -= 0.01
+    bpy.context.view_layer.update()
+    assert state.dirty
+    assert bpy.ops.myoskin.unbind() == {'FINISHED'} and weights_of(skin) == original
+
+
 def test_two_bound_characters_in_one_scene():
     arm1, skin1, state1, _ = bound_arm(seed=1)
     assert bpy.ops.myoskin.add_synthetic_arm(seed=2) == {'FINISHED'}

@@ -147,6 +147,7 @@ class MYOSKIN_PT_bind(_WorkflowStep, bpy.types.Panel):
         if state.bound:
             layout.label(text=f"Bound to {state.skin.name if state.skin else '?'}", icon='CHECKMARK')
             layout.prop(state, "live")
+            layout.prop(state, "auto_rebind")
             if state.dirty:
                 layout.label(text="Muscles edited since the bind: Bind again", icon='ERROR')
         else:
