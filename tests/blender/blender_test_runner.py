@@ -27,6 +27,31 @@ class Skip(Exception):
     """Raise to skip the current test; the message is the reason."""
 
 
+def addon_module(name=""):
+    """The add-on package `myoskin` or one of its submodules, as Blender imported them."""
+    full = "myoskin" + ("." + name if name else "")
+    __import__(full)
+    return sys.modules[full]
+
+
+def core():
+    """The compiled _core module, through the add-on's loader."""
+    return addon_module("core_loader").core()
+
+
+def operator_error(op, **kwargs):
+    """Call an operator that must fail cleanly; returns its error text ('' when it returned CANCELLED
+    without Blender raising). A Python traceback inside the text means the operator itself raised."""
+    try:
+        result = op(**kwargs)
+    except RuntimeError as e:
+        text = str(e)
+        assert "Traceback" not in text, f"operator raised instead of reporting:\n{text}"
+        return text
+    assert result == {'CANCELLED'}, result
+    return ""
+
+
 def skip(reason):
     raise Skip(reason)
 

@@ -17,6 +17,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.environ.get("MYOSKIN_SOURCE_DIR", os.path.join(os.path.dirname(
     os.path.abspath(__file__)), "..", "..")), "tests", "blender"))
 import blender_test_runner as runner  # noqa: E402
+from blender_test_runner import addon_module, core, operator_error  # noqa: E402
 
 ADDON = "myoskin"
 MUSCULAR = "characters/makehuman_muscular_male/makehuman_muscular_male.glb"
@@ -25,17 +26,6 @@ MUSCULAR = "characters/makehuman_muscular_male/makehuman_muscular_male.glb"
 # ------------------------------------------------------------------------------------------------
 # helpers
 # ------------------------------------------------------------------------------------------------
-
-def addon_module(name=""):
-    """myoskin or one of its submodules (as imported by Blender)."""
-    full = ADDON + ("." + name if name else "")
-    __import__(full)
-    return sys.modules[full]
-
-
-def core():
-    return addon_module("core_loader").core()
-
 
 def clear_scene():
     """Remove every object and orphan mesh/armature/curve without touching preferences or add-ons."""
@@ -69,19 +59,6 @@ def dense_weights(joints, values, num_bones):
     used = joints >= 0
     np.add.at(dense, (rows[used], joints[used]), values[used])
     return dense
-
-
-def operator_error(op, **kwargs):
-    """Call an operator that must fail cleanly; returns its error text ('' when it returned CANCELLED
-    without Blender raising). A Python traceback inside the text means the operator itself raised."""
-    try:
-        result = op(**kwargs)
-    except RuntimeError as e:
-        text = str(e)
-        assert "Traceback" not in text, f"operator raised instead of reporting:\n{text}"
-        return text
-    assert result == {'CANCELLED'}, result
-    return ""
 
 
 from fake_layout import draw_panel  # noqa: E402  (UILayout stand-in)

@@ -17,35 +17,14 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.environ.get("MYOSKIN_SOURCE_DIR", os.path.join(os.path.dirname(
     os.path.abspath(__file__)), "..", "..")), "tests", "blender"))
 import blender_test_runner as runner  # noqa: E402
+from blender_test_runner import addon_module as module, core, operator_error  # noqa: E402
 
 MUSCULAR = "characters/makehuman_muscular_male/makehuman_muscular_male.glb"
 TMP = tempfile.mkdtemp(prefix="myoskin_test_muscles_")
 
 
-def module(name):
-    full = "myoskin." + name
-    __import__(full)
-    return sys.modules[full]
-
-
-def core():
-    return module("core_loader").core()
-
-
 def clear_scene():
     bpy.ops.wm.read_homefile(use_empty=True)
-
-
-def operator_error(op, **kwargs):
-    """Call an operator that must fail cleanly; returns its error text."""
-    try:
-        result = op(**kwargs)
-    except RuntimeError as e:
-        text = str(e)
-        assert "Traceback" not in text, f"operator raised instead of reporting:\n{text}"
-        return text
-    assert result == {'CANCELLED'}, result
-    return ""
 
 
 def add_arm(seed=1):
