@@ -149,20 +149,24 @@ def muscles_visible(arm_obj):
 def update_armature(arm_obj, depsgraph=None, force=False, surfaces=None):
     """Pose one bound armature's muscle joints (and surfaces) from its evaluated skeleton. Returns True
     when it wrote something."""
-    from . import rig_io
     live = live_rig(arm_obj)
     pose = evaluated_pose(arm_obj, live, depsgraph)
     if not force and live.last_pose is not None and np.abs(pose - live.last_pose).max() <= PREDICT_TOLERANCE:
         return False
-    with_surfaces = muscles_visible(arm_obj) if surfaces is None else surfaces
+    write_pose(arm_obj, live, pose, muscles_visible(arm_obj) if surfaces is None else surfaces)
+    stats["written"] += 1
+    return True
+
+
+def write_pose(arm_obj, live, pose, with_surfaces):
+    """Evaluate the rig for a skeleton pose (#B by 4 by 4) and write the joint bones (and the surfaces)."""
+    from . import rig_io
     result = live.rig.evaluate(pose, with_surfaces=with_surfaces)
     parents = {n: pose[i] for i, n in enumerate(live.bone_names)}
     rig_io.write_joint_matrices(arm_obj, live.joint_names, result["joint_matrices"], parent_matrices=parents)
     if with_surfaces:
         write_surfaces(arm_obj, live, result["surfaces"])
     live.last_pose = pose
-    stats["written"] += 1
-    return True
 
 
 def write_surfaces(arm_obj, live, surfaces):
@@ -263,18 +267,11 @@ def predicted_pose(arm_obj, live, frame):
 
 def predict_armature(arm_obj, frame):
     """frame_change_pre: write the joints for the predicted pose (True when it could predict)."""
-    from . import rig_io
     live = live_rig(arm_obj)
     pose = predicted_pose(arm_obj, live, frame)
     if pose is None:
         return False
-    with_surfaces = muscles_visible(arm_obj)
-    result = live.rig.evaluate(pose, with_surfaces=with_surfaces)
-    parents = {n: pose[i] for i, n in enumerate(live.bone_names)}
-    rig_io.write_joint_matrices(arm_obj, live.joint_names, result["joint_matrices"], parent_matrices=parents)
-    if with_surfaces:
-        write_surfaces(arm_obj, live, result["surfaces"])
-    live.last_pose = pose
+    write_pose(arm_obj, live, pose, muscles_visible(arm_obj))
     stats["predicted"] += 1
     return True
 
