@@ -111,7 +111,13 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       return;
     }
     try {
-      const SectionTriangulation tri = triangulateSection(prof.polygon);
+      // Torso sections are split along their mirror axis, so a symmetric body's two sides triangulate alike.
+      std::vector<std::array<int, 2>> split;
+      if (prof.plane.mirrorAxis && prof.onSkin.empty()) {
+        const std::array<int, 2> axis = axisDiagonal(prof.polygon);
+        if (axis[0] >= 0) split.push_back(axis);
+      }
+      const SectionTriangulation tri = triangulateSection(prof.polygon, split);
       // Hysteresis: bumps down to weakFraction of the threshold, significance still relative to the threshold.
       const double weak = std::clamp(options.weakFraction, 1e-3, 1.0);
       BumpOptions low = options.bumps;
@@ -244,13 +250,15 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       ++rep.droppedShort;
       continue;
     }
-    if (options.minRelative > 0) {  // the bumps' mean height relative to their sections' size
+    const bool trunk = c.family == "abdomen" || c.family == "neck";
+    const double floor = trunk ? std::max(options.minRelative, options.minRelativeTrunk) : options.minRelative;
+    if (floor > 0) {  // the bumps' mean height relative to their sections' size
       double sum = 0.0;
       int count = 0;
       for (const ChainLink& l : c.links)
         if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].relative.size()))
           sum += sections[l.section].relative[l.bump], ++count;
-      if (count == 0 || sum < options.minRelative * count) {
+      if (count == 0 || sum < floor * count) {
         ++rep.droppedFlat;
         continue;
       }

@@ -212,9 +212,28 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
                       std::to_string(static_cast<int>(100 * onRegion / perimeter)) + " % on it";
     return prof;
   }
-  const int count = o.samples > 0 ? o.samples : std::clamp(static_cast<int>(std::lround(perimeter / 0.002)), 48, 400);
+  int count = o.samples > 0 ? o.samples : std::clamp(static_cast<int>(std::lround(perimeter / 0.002)), 48, 400);
+  if (plane.mirrorAxis && o.samples <= 0) count += count % 2;  // the -Y crossing is then a sample too
   std::vector<int> source;
   prof.polygon = resample(loop.points, count, source);
+  if (plane.mirrorAxis && count % 2 == 0 && o.mirrorTolerance > 0 && skin.empty()) {
+    // Sample k mirrors sample count - k (both start on the +Y axis and run the same arc length): when every pair
+    // matches within the tolerance, average each pair so the two sides are exact mirror images.
+    double worst = 0.0;
+    for (int k = 0; k <= count / 2; ++k) {
+      const int j = (count - k) % count;
+      worst = std::max(worst, std::hypot(prof.polygon(k, 0) + prof.polygon(j, 0), prof.polygon(k, 1) - prof.polygon(j, 1)));
+    }
+    if (worst <= o.mirrorTolerance) {
+      for (int k = 0; k <= count / 2; ++k) {
+        const int j = (count - k) % count;
+        const double x = 0.5 * (prof.polygon(k, 0) - prof.polygon(j, 0)), y = 0.5 * (prof.polygon(k, 1) + prof.polygon(j, 1));
+        prof.polygon.row(k) << x, y;
+        prof.polygon.row(j) << -x, y;  // k == j on the axis: x is then exactly 0
+      }
+      prof.symmetric = true;
+    }
+  }
   prof.inMask.assign(count, 1);
   if (!skin.empty()) {  // a resampled point is on the skin when the loop segment it lies on is
     prof.onSkin.assign(count, 1);
