@@ -323,7 +323,8 @@ TEST(BumpStage, SpeedPerSection) {
 TEST(BumpStage, FuzzHostilePolygons) {
   std::mt19937 rng(12345);
   std::uniform_real_distribution<double> u(0.0, 1.0);
-  int valid = 0, rejected = 0, bumpsSeen = 0;
+  std::mt19937 diag(777);  // a separate stream, so the polygons are the same with or without diagonals
+  int valid = 0, rejected = 0, bumpsSeen = 0, forced = 0;
   for (int trial = 0; trial < 3000; ++trial) {
     const int kind = trial % 7;
     const int n = 3 + static_cast<int>(u(rng) * 120);
@@ -340,8 +341,16 @@ TEST(BumpStage, FuzzHostilePolygons) {
     if (kind == 4) for (int i = 0; i < n; ++i) p.row(i) << u(rng) * scale, u(rng) * scale;  // random mess
     if (kind == 5) p(static_cast<int>(u(rng) * n), 0) = std::nan("");           // NaN
     if (kind == 6) p.setZero();                                                 // degenerate
+    // Every other trial forces diagonals too: the mirror axis (if any) and a random index pair, proper or not.
+    std::vector<std::array<int, 2>> diagonals;
+    if (trial % 2) {
+      diagonals.push_back(axisDiagonal(p));
+      diagonals.push_back({static_cast<int>(diag() % n), static_cast<int>(diag() % n)});
+    }
     try {
-      const SectionTriangulation t = triangulateSection(p);
+      const SectionTriangulation t = triangulateSection(p, diagonals);
+      EXPECT_LE(t.diagonals.size(), diagonals.size());
+      forced += static_cast<int>(t.diagonals.size());
       for (const Bump& b : findBumps(p, {}, &t)) {
         const Ellipse2 e = fitBumpEllipse(p, b, t);
         ASSERT_TRUE(std::isfinite(e.center.x()) && std::isfinite(e.center.y()) && std::isfinite(e.a) && std::isfinite(e.b));
@@ -355,7 +364,9 @@ TEST(BumpStage, FuzzHostilePolygons) {
       ADD_FAILURE() << "trial " << trial << " (kind " << kind << "): " << e.what();
     }
   }
-  std::printf("fuzz: %d valid, %d rejected with InputError, %d bumps fitted\n", valid, rejected, bumpsSeen);
+  std::printf("fuzz: %d valid, %d rejected with InputError, %d bumps fitted, %d diagonals forced\n", valid, rejected,
+              bumpsSeen, forced);
   EXPECT_GT(valid, 1000);
+  EXPECT_GT(forced, 100);
   EXPECT_GT(rejected, 500);
 }

@@ -17,7 +17,9 @@
 //  - one bump per hill: significant regions whose apexes are not separated by a valley at least as deep
 //    as the threshold are one group; the group keeps its smallest region that still has 85 % of the
 //    group's best protrusion (the region that spans the hill from valley to valley); finally bumps whose
-//    arcs overlap by more than half of the shorter one are deduplicated, keeping the most significant.
+//    arcs overlap by more than half of the shorter one are deduplicated, keeping the most significant;
+//  - a triangulation split along a diagonal (a trunk section's mirror axis) keeps its sides apart: no region
+//    bounded by the split is a bump and hills on its two sides are never grouped.
 #include <algorithm>
 #include <array>
 #include <cmath>
