@@ -32,6 +32,8 @@ py::dict reportToDict(const ExtractionReport& r) {
   d["dropped_confidence"] = r.droppedConfidence;
   d["dropped_region_limit"] = r.droppedRegionLimit;
   d["dropped_overlap"] = r.droppedOverlap;
+  d["mirrored"] = r.mirrored;
+  d["split"] = r.split;
   d["dropped_flat"] = r.droppedFlat;
   d["forced"] = r.forced;
   py::list skipped;

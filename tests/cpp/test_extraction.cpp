@@ -563,6 +563,14 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
     EXPECT_GE(left[p], 1) << p;
     EXPECT_GE(right[p], 1) << p;
   }
+  // The trunk's sections (abdomen, neck): split along the mirror axis, and on this body exactly symmetric.
+  int trunkPlanes = 0;
+  for (const CuttingPlane& p : makeCuttingPlanes(cm, classifyBones(cm.skeleton)))
+    if (p.family == "abdomen" || p.family == "neck") ++trunkPlanes;
+  std::printf("  trunk: %d planes, %d sections split along the mirror axis, %d made exactly symmetric\n", trunkPlanes,
+              rm.report.split, rm.report.mirrored);
+  EXPECT_GT(rm.report.split, 10);
+  EXPECT_EQ(rm.report.mirrored, rm.report.split);
   const MirrorReport mr = mirrorReport(rm.muscles, 0.01);
   std::printf("  symmetry: %d at +x, %d at -x, %d of %d muscles mirrored within 1 cm (worst %.4f m; issue target: all)\n",
               mr.left, mr.right, mr.paired, mr.muscles, mr.worst);

@@ -28,6 +28,7 @@ struct SectionWork {
   std::vector<double> significance;
   std::vector<double> relative;
   std::vector<int> forcedRegion;  // per ellipse: forced region index or -1
+  bool split = false;             // triangulated as two halves along the mirror axis
 };
 
 // Does bump arc [first, last] (counter-clockwise, wrapping) contain polygon index i?
@@ -118,6 +119,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
         if (axis[0] >= 0) split.push_back(axis);
       }
       const SectionTriangulation tri = triangulateSection(prof.polygon, split);
+      w.split = !tri.diagonals.empty();
       // Hysteresis: bumps down to weakFraction of the threshold, significance still relative to the threshold.
       const double weak = std::clamp(options.weakFraction, 1e-3, 1.0);
       BumpOptions low = options.bumps;
@@ -212,6 +214,8 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       continue;
     }
     ++rep.sections;
+    rep.mirrored += profiles[i].symmetric;
+    rep.split += work[i].split;
     SectionBumps s;
     s.plane = profiles[i].plane;
     s.ellipses = work[i].ellipses;
