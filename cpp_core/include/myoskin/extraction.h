@@ -74,9 +74,10 @@ struct ExtractionOptions {
                                                // flattest contours 0.083-0.085 (0 = off)
   double minRelativeTrunk = 0.15;              // the same floor for the trunk families (abdomen, neck: planes across
                                                // the whole body): a thick trunk section's soft relief (belly, flanks)
-                                               // stands out about as far, for its size, as a limb's belly. Measured:
-                                               // MakeHuman neutral's abdomen chains 0.10-0.14, the muscular male's
-                                               // 0.18-0.24 (plane spacing -5 %..+5 %); the larger of the two applies
+                                               // stands out about as far, for its size, as a limb's belly. Measured
+                                               // (plane spacing x 0.95-1.05): MakeHuman neutral's abdomen chains
+                                               // 0.10-0.15 (0.151 at x 0.975, which passes), the muscular male's
+                                               // 0.10-0.28 (0.19 at the default); the larger of the two applies
   double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones are kept)
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
 };
