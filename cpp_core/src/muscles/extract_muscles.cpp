@@ -256,11 +256,12 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     }
     const bool trunk = c.family == "abdomen" || c.family == "neck";
     const double floor = trunk ? std::max(options.minRelative, options.minRelativeTrunk) : options.minRelative;
-    if (floor > 0) {  // the bumps' mean height relative to their sections' size
+    if (floor > 0) {  // the bumps' mean height relative to their sections' size (the faint tail links left out)
       double sum = 0.0;
       int count = 0;
       for (const ChainLink& l : c.links)
-        if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].relative.size()))
+        if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].relative.size()) &&
+            sections[l.section].significance[l.bump] >= options.magnitudeFraction)
           sum += sections[l.section].relative[l.bump], ++count;
       if (count == 0 || sum < floor * count) {
         ++rep.droppedFlat;
