@@ -72,6 +72,11 @@ def test_makehuman_trunk_is_mirror_consistent(core):
     assert len(loose) >= len(muscles)
     with pytest.raises(ValueError, match="min_relative_trunk"):
         core.extract_muscles(character, min_relative_trunk=-1.0)
+    # Opt-in: mirrored limb profiles averaged too, so every muscle's mirror image is exact (to rounding).
+    twins, twin_report = core.extract_muscles(character, build_surfaces=False, mirror_limbs=True)
+    assert twin_report["mirrored"] > twin_report["split"]
+    c = np.array([np.asarray(m.section_centers).mean(axis=0) for m in twins])
+    assert np.linalg.norm(c[:, None, :] - (c * [-1.0, 1.0, 1.0])[None, :, :], axis=2).min(axis=1).max() < 1e-3
 
 
 def test_muscles_round_trip_through_json(core, arm):

@@ -67,10 +67,13 @@ struct ExtractionOptions {
                                                // threshold are linked too, so a muscle whose bump fades
                                                // towards its tendons (or under a neighbour) is followed further;
                                                // a muscle needs link.minSections significant sections.
-                                               // 1 = no hysteresis. Measured: 0.8 leaves the synthetic seed 2's
-                                               // brachialis at 5 sections (47 % of its length), 0.5 gives 8 (64 %:
-                                               // recall and precision 1.0 on seeds 0-3) but MakeHuman's calves
-                                               // then differ left and right (their faint tails are not mirrored)
+                                               // 1 = no hysteresis. Measured: 0.8 follows the synthetic seed 2's
+                                               // brachialis over 5 sections (46 % of its length: a miss), 0.5 over 7
+                                               // (61 %: recall and precision 1.0 on seeds 0-3; with
+                                               // profiles.mirrorLimbs MakeHuman's calves stay mirrored), but 0.5 also
+                                               // lengthens the synthetic arm's biceps towards the elbow: the hybrid
+                                               // skinning's elbow region at 35 degrees grows +6.5 % (0.6: +4.4 %)
+                                               // where LBS loses 3.6 % (0.8: +2.9 %), failing test_hybrid_skinning
   double magnitudeFraction = 0.8;              // the magnitude floors (minRelative, minRelativeTrunk) average only
                                                // the bumps of at least this share of the threshold, so faint tail
                                                // links extend a muscle without diluting its magnitude

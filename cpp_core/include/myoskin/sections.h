@@ -86,7 +86,8 @@ struct SectionProfile {
   std::vector<char> inMask;  // #P: the point lies on masked skin (all 1 without a mask)
   std::vector<char> onSkin;  // #P: 1 on the skin, 0 on the chord that closes a clipped profile (empty = all 1)
   double perimeter = 0.0;   // metres
-  bool symmetric = false;   // made exactly mirror-symmetric about the plane's y axis (ProfileOptions::mirrorTolerance)
+  bool symmetric = false;   // made exactly mirror-symmetric (ProfileOptions::mirrorTolerance): about the plane's y
+                            // axis (trunk), or with its mirrored twin on the other side (limbs)
   bool ok = false;
   std::string skipReason;   // why the section was skipped (no loop around the bone, open loop, ...)
 };
@@ -98,6 +99,11 @@ struct ProfileOptions {
   double mirrorTolerance = 0.002;  // metres: a mirror-axis section (CuttingPlane::mirrorAxis) whose mirrored
                                    // samples pair up within this is made exactly symmetric (each pair averaged),
                                    // so the bump stage sees both sides alike; 0 = never
+  bool mirrorLimbs = false;  // also average a left and a right plane's profiles that mirror each other about the
+                             // trunk's mirror plane within mirrorTolerance (limbs, shoulders), so mirrored limbs give
+                             // exactly mirrored bumps. Off by default: measured on MakeHuman, limbs are mirrored
+                             // within 1 cm without it at the default hysteresis, and with it the neutral body keeps
+                             // 8 muscles instead of 6; it is needed for fainter hysteresis (weakFraction 0.5)
 };
 
 // Cut every plane through the skin: the closed loop enclosing the plane origin (the smallest one), kept when

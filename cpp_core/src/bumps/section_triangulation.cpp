@@ -229,10 +229,11 @@ SectionTriangulation triangulateSection(const Points2& polygon, const std::vecto
   }
   if (count != m - 2) throw InputError("section polygon is degenerate (inside triangles do not cover it)");
   for (const auto& u : used) t.diagonals.push_back({s.original[u[0]], s.original[u[1]]});
-  if (!used.empty()) {
-    // Order by the vertices' distances along the polygon from the first diagonal's first end: invariant under the
-    // reflection that swaps the split's sides, so both sides of a mirror-symmetric section merge in the same order.
-    const int root = used.front()[0];
+  {
+    // Order by the vertices' distances along the polygon from the first diagonal's first end (else from vertex 0):
+    // invariant under the reflection that swaps the split's sides, and the same for a polygon and its mirror image
+    // resampled from the same axis point, so mirrored sections merge in the same order.
+    const int root = used.empty() ? 0 : used.front()[0];
     auto key = [&](Eigen::Index r) {
       std::array<int, 3> k;
       for (int c = 0; c < 3; ++c) {

@@ -258,6 +258,53 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
   return prof;
 }
 
+// ============================================================================
+// Mirrored twins
+// ============================================================================
+
+// A left and a right plane of one family and order whose frames mirror each other about the trunk's mirror
+// plane (through the first mirror-axis plane's origin, normal to its X axis; mirrored limbs' X axes are mirrored
+// and negated) give profiles where sample k of one mirrors sample N - k of the other in plane coordinates,
+// (x, y) -> (-x, y). When every pair matches within the tolerance, both become the average, exact mirror images.
+void mirrorTwins(const std::vector<CuttingPlane>& planes, double tolerance, std::vector<SectionProfile>& out) {
+  if (!(tolerance > 0)) return;
+  const auto axis = std::find_if(planes.begin(), planes.end(), [](const CuttingPlane& p) { return p.mirrorAxis; });
+  if (axis == planes.end()) return;
+  const Vec3 c = axis->origin, n = axis->xAxis.normalized();
+  auto point = [&](const Vec3& p) { return Vec3(p - 2.0 * (p - c).dot(n) * n); };
+  auto direction = [&](const Vec3& d) { return Vec3(d - 2.0 * d.dot(n) * n); };
+  std::vector<char> taken(planes.size(), 0);
+  for (size_t i = 0; i < planes.size(); ++i) {
+    const CuttingPlane& a = planes[i];
+    if (a.mirrorAxis || taken[i] || !out[i].ok || !out[i].onSkin.empty()) continue;
+    for (size_t j = i + 1; j < planes.size(); ++j) {
+      const CuttingPlane& b = planes[j];
+      if (taken[j] || b.family != a.family || b.familyIndex == a.familyIndex || b.order != a.order) continue;
+      if ((point(a.origin) - b.origin).norm() > tolerance || (direction(a.normal) - b.normal).norm() > 1e-3 ||
+          (direction(a.xAxis) + b.xAxis).norm() > 1e-3)
+        continue;
+      taken[j] = 1;
+      SectionProfile &p = out[i], &q = out[j];
+      const Eigen::Index count = p.polygon.rows();
+      if (!q.ok || !q.onSkin.empty() || q.polygon.rows() != count) break;
+      double worst = 0.0;
+      for (Eigen::Index k = 0; k < count; ++k) {
+        const Eigen::Index m = (count - k) % count;
+        worst = std::max(worst, std::hypot(p.polygon(k, 0) + q.polygon(m, 0), p.polygon(k, 1) - q.polygon(m, 1)));
+      }
+      if (worst > tolerance) break;
+      for (Eigen::Index k = 0; k < count; ++k) {
+        const Eigen::Index m = (count - k) % count;
+        const double x = 0.5 * (p.polygon(k, 0) - q.polygon(m, 0)), y = 0.5 * (p.polygon(k, 1) + q.polygon(m, 1));
+        p.polygon.row(k) << x, y;
+        q.polygon.row(m) << -x, y;
+      }
+      p.symmetric = q.symmetric = true;
+      break;
+    }
+  }
+}
+
 }  // namespace
 
 // ============================================================================
@@ -291,6 +338,7 @@ std::vector<SectionProfile> cutSections(const Character& character, const std::v
       out[i].skipReason = std::string("cutting failed: ") + e.what();
     }
   });
+  if (options.mirrorLimbs) mirrorTwins(planes, options.mirrorTolerance, out);
   return out;
 }
 
