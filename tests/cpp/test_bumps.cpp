@@ -2,10 +2,13 @@
 // ellipse under each bump; a fuzz test over hostile polygons.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <set>
 
 #include "myoskin/bumps.h"
 #include "myoskin/errors.h"
@@ -186,6 +189,86 @@ TEST(BumpEllipse, MirroredSectionGivesMirroredBumpsAndEllipses) {
 // Ellipses
 // ============================================================================
 
+// A torso-like oval, exactly mirror-symmetric about the y axis (sample k mirrors sample n - k, sample 0 on +y),
+// with two mirrored pairs of bellies of different heights.
+Points2 mirroredTorso(int n = 240) {
+  Points2 p(n, 2);
+  for (int i = 0; i < n; ++i) {
+    const double t = 0.5 * kPi + 2 * kPi * i / n;
+    double r = 0.12;
+    for (const auto& [a, h] : {std::pair{0.5, 0.012}, std::pair{kPi - 0.5, 0.012}, std::pair{-1.1, 0.008},
+                               std::pair{kPi + 1.1, 0.008}}) {
+      const double d = std::remainder(t - a, 2 * kPi);
+      if (std::abs(d) < 0.4) r += h * std::pow(std::cos(0.5 * kPi * d / 0.4), 2);
+    }
+    p.row(i) << 1.4 * r * std::cos(t), r * std::sin(t);
+  }
+  for (int k = 0; k <= n / 2; ++k) {  // exact mirror pairs
+    const int j = (n - k) % n;
+    const double x = 0.5 * (p(k, 0) - p(j, 0)), y = 0.5 * (p(k, 1) + p(j, 1));
+    p.row(k) << x, y;
+    p.row(j) << -x, y;
+  }
+  return p;
+}
+
+TEST(SectionCdt, SplitAlongTheMirrorAxisGivesMirroredTrianglesAndBumps) {
+  const int n = 240;
+  const Points2 p = mirroredTorso(n);
+  const std::array<int, 2> axis = axisDiagonal(p);
+  EXPECT_EQ(axis[0], 0);
+  EXPECT_EQ(axis[1], n / 2);
+  const SectionTriangulation t = triangulateSection(p, {axis});
+  ASSERT_EQ(t.diagonals.size(), 1u);
+  ASSERT_EQ(t.triangles.rows(), n - 2);
+  std::set<std::array<int, 3>> tris;
+  auto sorted = [](std::array<int, 3> a) { std::sort(a.begin(), a.end()); return a; };
+  for (Eigen::Index f = 0; f < t.triangles.rows(); ++f) tris.insert(sorted({t.triangles(f, 0), t.triangles(f, 1), t.triangles(f, 2)}));
+  int unmatched = 0;
+  for (const auto& a : tris) unmatched += !tris.count(sorted({(n - a[0]) % n, (n - a[1]) % n, (n - a[2]) % n}));
+  EXPECT_EQ(unmatched, 0);
+  // Every bump has its mirror image (arc, apex, height and ellipse), and none spans the split.
+  const std::vector<Bump> bumps = findBumps(p, {}, &t);
+  EXPECT_EQ(bumps.size(), 4u);
+  for (const Bump& b : bumps) {
+    EXPECT_FALSE((b.first == 0 && b.last == n / 2) || (b.first == n / 2 && b.last == 0));
+    int mirrors = 0;
+    for (const Bump& c : bumps) {
+      if (c.apex != (n - b.apex) % n) continue;
+      ++mirrors;
+      EXPECT_EQ(c.first, (n - b.last) % n);
+      EXPECT_EQ(c.last, (n - b.first) % n);
+      EXPECT_NEAR(c.protrusion, b.protrusion, 1e-12);
+      const Ellipse2 e = fitBumpEllipse(p, b, t), f = fitBumpEllipse(p, c, t);
+      EXPECT_NEAR(f.center.x(), -e.center.x(), 1e-9);
+      EXPECT_NEAR(f.center.y(), e.center.y(), 1e-9);
+      EXPECT_NEAR(f.a, e.a, 1e-9);
+      EXPECT_NEAR(f.b, e.b, 1e-9);
+    }
+    EXPECT_EQ(mirrors, 1) << "apex " << b.apex;
+  }
+}
+
+TEST(SectionCdt, ImproperDiagonalsAreLeftOut) {
+  const int n = 240;
+  const Points2 p = mirroredTorso(n);
+  // Adjacent, equal, out of range, and one crossing an earlier one.
+  const SectionTriangulation t = triangulateSection(p, {{0, 1}, {5, 5}, {-1, 3}, {0, n}, {0, n / 2}, {n / 4, 3 * n / 4}});
+  ASSERT_EQ(t.diagonals.size(), 1u);
+  EXPECT_EQ(t.diagonals[0], (std::array<int, 2>{0, n / 2}));
+  EXPECT_EQ(t.triangles.rows(), n - 2);
+  // A U shape: the chord between the tips of its arms runs outside it; one between its two inner corners and the
+  // base runs along the boundary's outside too. Both are left out and the triangulation stays whole.
+  Points2 u(8, 2);
+  u << 0, 0, 3, 0, 3, 3, 2, 3, 2, 1, 1, 1, 1, 3, 0, 3;
+  const SectionTriangulation tu = triangulateSection(u, {{2, 7}, {3, 6}});
+  EXPECT_TRUE(tu.diagonals.empty());
+  EXPECT_EQ(tu.triangles.rows(), 6);
+  const SectionTriangulation inner = triangulateSection(u, {{0, 5}});  // a proper inner diagonal
+  EXPECT_EQ(inner.diagonals.size(), 1u);
+  EXPECT_EQ(inner.triangles.rows(), 6);
+}
+
 TEST(BumpEllipse, UnderTheSkinNearTheBelly) {
   // A limb disc (R = 5 cm) united with a muscle disc of radius r centred at distance d: the ellipse under
   // the bump should sit near the muscle disc.
@@ -240,7 +323,8 @@ TEST(BumpStage, SpeedPerSection) {
 TEST(BumpStage, FuzzHostilePolygons) {
   std::mt19937 rng(12345);
   std::uniform_real_distribution<double> u(0.0, 1.0);
-  int valid = 0, rejected = 0, bumpsSeen = 0;
+  std::mt19937 diag(777);  // a separate stream, so the polygons are the same with or without diagonals
+  int valid = 0, rejected = 0, bumpsSeen = 0, forced = 0;
   for (int trial = 0; trial < 3000; ++trial) {
     const int kind = trial % 7;
     const int n = 3 + static_cast<int>(u(rng) * 120);
@@ -257,8 +341,16 @@ TEST(BumpStage, FuzzHostilePolygons) {
     if (kind == 4) for (int i = 0; i < n; ++i) p.row(i) << u(rng) * scale, u(rng) * scale;  // random mess
     if (kind == 5) p(static_cast<int>(u(rng) * n), 0) = std::nan("");           // NaN
     if (kind == 6) p.setZero();                                                 // degenerate
+    // Every other trial forces diagonals too: the mirror axis (if any) and a random index pair, proper or not.
+    std::vector<std::array<int, 2>> diagonals;
+    if (trial % 2) {
+      diagonals.push_back(axisDiagonal(p));
+      diagonals.push_back({static_cast<int>(diag() % n), static_cast<int>(diag() % n)});
+    }
     try {
-      const SectionTriangulation t = triangulateSection(p);
+      const SectionTriangulation t = triangulateSection(p, diagonals);
+      EXPECT_LE(t.diagonals.size(), diagonals.size());
+      forced += static_cast<int>(t.diagonals.size());
       for (const Bump& b : findBumps(p, {}, &t)) {
         const Ellipse2 e = fitBumpEllipse(p, b, t);
         ASSERT_TRUE(std::isfinite(e.center.x()) && std::isfinite(e.center.y()) && std::isfinite(e.a) && std::isfinite(e.b));
@@ -272,7 +364,9 @@ TEST(BumpStage, FuzzHostilePolygons) {
       ADD_FAILURE() << "trial " << trial << " (kind " << kind << "): " << e.what();
     }
   }
-  std::printf("fuzz: %d valid, %d rejected with InputError, %d bumps fitted\n", valid, rejected, bumpsSeen);
+  std::printf("fuzz: %d valid, %d rejected with InputError, %d bumps fitted, %d diagonals forced\n", valid, rejected,
+              bumpsSeen, forced);
   EXPECT_GT(valid, 1000);
+  EXPECT_GT(forced, 100);
   EXPECT_GT(rejected, 500);
 }

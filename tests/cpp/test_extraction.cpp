@@ -486,6 +486,42 @@ TEST(Measured, DeterministicAndUserControl) {
   EXPECT_EQ(forced.report.forced, static_cast<int>(forced.muscles.size()));
 }
 
+// Left/right symmetry of muscles extracted from a mirror-symmetric body (x -> -x): each muscle is paired with
+// the nearest unused muscle to its mirror image, compared by mean section centre, origin and insertion.
+struct MirrorReport {
+  int muscles = 0, paired = 0;  // muscles paired within the tolerance (a centre muscle may pair with itself)
+  double worst = 0.0;           // metres: largest distance of a muscle's mirror image to its partner's
+  int left = 0, right = 0;      // muscles at +x, -x (mean centre beyond 1 cm)
+};
+
+MirrorReport mirrorReport(const std::vector<Muscle>& muscles, double tolerance) {
+  MirrorReport r;
+  r.muscles = static_cast<int>(muscles.size());
+  const Vec3 flip(-1, 1, 1);
+  auto distance = [&](const Muscle& a, const Muscle& b) {
+    return std::max({(meanCenter(a).cwiseProduct(flip) - meanCenter(b)).norm(),
+                     (a.origin.position.cwiseProduct(flip) - b.origin.position).norm(),
+                     (a.insertion.position.cwiseProduct(flip) - b.insertion.position).norm()});
+  };
+  std::vector<char> used(muscles.size(), 0);
+  for (size_t i = 0; i < muscles.size(); ++i) {
+    const double x = meanCenter(muscles[i]).x();
+    r.left += x > 0.01;
+    r.right += x < -0.01;
+    if (used[i]) continue;
+    int best = -1;
+    for (size_t j = 0; j < muscles.size(); ++j)
+      if (!used[j] && (best < 0 || distance(muscles[i], muscles[j]) < distance(muscles[i], muscles[best])))
+        best = static_cast<int>(j);
+    const double d = distance(muscles[i], muscles[best]);
+    r.worst = std::max(r.worst, d);
+    if (d > tolerance) continue;
+    used[i] = used[best] = 1;
+    r.paired += best == static_cast<int>(i) ? 1 : 2;
+  }
+  return r;
+}
+
 TEST(Measured, MakeHumanMuscularVersusNeutral) {
   const std::string muscular = test::sharedPath("characters/makehuman_muscular_male/makehuman_muscular_male.glb");
   const std::string neutral = test::sharedPath("characters/makehuman_neutral/makehuman_neutral.glb");
@@ -514,49 +550,117 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
     return "other";
   };
   std::map<std::string, int> left, right;
-  std::vector<Vec3> lc, rc;
   for (const Muscle& m : rm.muscles) {
     const Vec3 c = meanCenter(m);
-    if (c.x() > 0.01) ++left[part(m)], lc.push_back(c);
-    if (c.x() < -0.01) ++right[part(m)], rc.push_back(c);
-    if (std::abs(c.x()) <= 0.01) ++left["centre"], ++right["centre"];
+    if (c.x() > 0.01) ++left[part(m)];
+    if (c.x() < -0.01) ++right[part(m)];
   }
-  // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Measured: arms
-  // 3 + 3, legs 2 + 2, torso and shoulders 3 + 3; every limb and shoulder muscle has its mirror within 1 cm
-  // (6 pairs); the abdomen's four (one family across both sides) do not. Asserted: every part on both
-  // sides, >= 6 pairs.
+  // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Measured: arms 3 + 3,
+  // legs 2 + 2, torso 2 + 2 (abdomen flanks, shoulder caps); all 14 mirrored (worst 1.3 mm over centres, origins
+  // and insertions). Before the abdomen's sections were split along their mirror axis: 6 of 8 pairs, worst 2.6 cm.
   for (const char* p : {"arm", "leg", "torso"}) std::printf("  %s: %d at +x, %d at -x (issue target: both)\n", p, left[p], right[p]);
   for (const char* p : {"arm", "leg", "torso"}) {
     EXPECT_GE(left[p], 1) << p;
     EXPECT_GE(right[p], 1) << p;
   }
-  // Mirror symmetry: muscles with a mirrored partner within 1 cm.
-  std::vector<char> used(rc.size(), 0);
-  int paired = 0;
-  double worst = 0;
-  for (const Vec3& c : lc) {
-    const Vec3 mirrored(-c.x(), c.y(), c.z());
-    int best = -1;
-    for (size_t j = 0; j < rc.size(); ++j)
-      if (!used[j] && (best < 0 || (rc[j] - mirrored).norm() < (rc[best] - mirrored).norm())) best = static_cast<int>(j);
-    if (best >= 0) {
-      const double d = (rc[best] - mirrored).norm();
-      worst = std::max(worst, d);
-      if (d <= 0.01) used[best] = 1, ++paired;
-    }
-  }
-  std::printf("  symmetry: %zu at +x, %zu at -x, %d mirrored pairs within 1 cm (worst nearest %.4f m; issue target: "
-              "all mirrored)\n", lc.size(), rc.size(), paired, worst);
-  EXPECT_GE(paired, 6);
+  // The trunk's sections (abdomen, neck): split along the mirror axis, and on this body exactly symmetric.
+  int trunkPlanes = 0;
+  for (const CuttingPlane& p : makeCuttingPlanes(cm, classifyBones(cm.skeleton)))
+    if (p.family == "abdomen" || p.family == "neck") ++trunkPlanes;
+  std::printf("  trunk: %d planes, %d sections split along the mirror axis, %d made exactly symmetric\n", trunkPlanes,
+              rm.report.split, rm.report.mirrored);
+  EXPECT_GT(rm.report.split, 10);
+  EXPECT_EQ(rm.report.mirrored, rm.report.split);
+  const MirrorReport mr = mirrorReport(rm.muscles, 0.01);
+  std::printf("  symmetry: %d at +x, %d at -x, %d of %d muscles mirrored within 1 cm (worst %.4f m; issue target: all)\n",
+              mr.left, mr.right, mr.paired, mr.muscles, mr.worst);
+  EXPECT_EQ(mr.paired, mr.muscles);
+  EXPECT_EQ(mr.left, mr.right);
 
   const Character cn = loadCharacter(neutral);
   const ExtractionResult rn = extractMuscles(cn);
-  std::printf("muscular male: %zu muscles, neutral: %zu muscles (issue target: neutral at most half; measured 16 vs 8)\n",
+  std::printf("muscular male: %zu muscles, neutral: %zu muscles (issue target: neutral at most half; measured 14 vs 6)\n",
               rm.muscles.size(), rn.muscles.size());
-  EXPECT_GE(rm.muscles.size(), 14u);
-  // Issue 3's target: the smooth skin gives at most half as many. Met, at the boundary (16 vs 8): the
-  // neutral body's breasts, front thighs, inner upper arms and forearms stand out as muscles do.
+  printMuscles(rn.muscles);
+  EXPECT_GE(rm.muscles.size(), 12u);
+  // Issue 3's target: the smooth skin gives at most half as many. The neutral body's front thighs, inner upper
+  // arms and forearms stand out as muscles do; its belly and flanks fall below the trunk's floor (minRelativeTrunk).
   EXPECT_LE(2 * rn.muscles.size(), rm.muscles.size());
+}
+
+TEST(Measured, MakeHumanRobustToPlaneSpacing) {
+  const std::string muscular = test::sharedPath("characters/makehuman_muscular_male/makehuman_muscular_male.glb");
+  const std::string neutral = test::sharedPath("characters/makehuman_neutral/makehuman_neutral.glb");
+  MYOSKIN_REQUIRE_SHARED(muscular);
+  MYOSKIN_REQUIRE_SHARED(neutral);
+  const Character cm = loadCharacter(muscular), cn = loadCharacter(neutral);
+  auto spaced = [](const Character& c, double f) {  // f times the default spacing (1/80 of the largest extent)
+    const Vec3 lo = c.mesh.vertices.colwise().minCoeff().transpose(), hi = c.mesh.vertices.colwise().maxCoeff().transpose();
+    ExtractionOptions o;
+    o.planes.spacing = f * (hi - lo).maxCoeff() / 80.0;
+    return o;
+  };
+  // Measured (muscular vs neutral): x 0.95 16 vs 6, x 0.975 10 vs 11, x 1 14 vs 6, x 1.025 10 vs 10, x 1.05 12 vs 6.
+  // Asserted: every muscular muscle mirrored at every spacing (worst 1.3 mm), and the issue's "at most half" at
+  // the default and at +-5 % (before: 0.47-0.82 there). It does NOT hold in between (x 0.975 and x 1.025): chains
+  // of 4-6 sections near the section-count and magnitude floors come and go with the plane grid on both bodies.
+  for (double f : {0.95, 0.975, 1.025, 1.05}) {
+    const ExtractionResult rm = extractMuscles(cm, spaced(cm, f)), rn = extractMuscles(cn, spaced(cn, f));
+    const MirrorReport mr = mirrorReport(rm.muscles, 0.01);
+    std::printf("spacing x %.3f: muscular %zu, neutral %zu; %d of %d muscular mirrored within 1 cm (worst %.4f m)\n",
+                f, rm.muscles.size(), rn.muscles.size(), mr.paired, mr.muscles, mr.worst);
+    EXPECT_GE(rm.muscles.size(), 8u) << f;
+    EXPECT_EQ(mr.paired, mr.muscles) << f;
+    if (f == 0.95 || f == 1.05) EXPECT_LE(2 * rn.muscles.size(), rm.muscles.size()) << f;
+  }
+}
+
+TEST(Measured, FaintHysteresisWithMirroredLimbs) {
+  // Opt-in: hysteresis down to half the threshold, mirrored limb profiles averaged. Measured: every seed's six
+  // muscles and nothing else (seed 2's brachialis followed over 7 sections, 61 % of its length, instead of 5 and
+  // 46 %); MakeHuman muscular 16 / 14 / 12 at spacing x 0.95 / 1 / 1.05 against neutral 8 / 6 / 6, every
+  // muscular one exactly mirrored. Not the default: the synthetic arm's biceps then reaches further towards the
+  // elbow and the hybrid skinning's elbow region at 35 degrees grows more than LBS loses (test_hybrid_skinning).
+  ExtractionOptions o;
+  o.weakFraction = 0.5;
+  o.profiles.mirrorLimbs = true;
+  for (unsigned seed : {0u, 1u, 2u, 3u}) {
+    SyntheticArmOptions so;
+    so.seed = seed;
+    const SyntheticCharacter arm = makeSyntheticArm(so);
+    const ExtractionAccuracy acc = measureExtraction(extractMuscles(arm.character, o).muscles, arm.muscles);
+    std::printf("faint hysteresis, seed %u: recall %.3f precision %.3f centre error %.3f radius\n", seed, acc.recall,
+                acc.precision, acc.meanCenterError);
+    EXPECT_GE(acc.recall, 0.9) << seed;
+    EXPECT_GE(acc.precision, 0.9) << seed;
+  }
+  SyntheticArmOptions smooth;
+  smooth.muscleScale = 0.0;
+  EXPECT_EQ(extractMuscles(makeSyntheticArm(smooth).character, o).muscles.size(), 0u);
+
+  const std::string muscular = test::sharedPath("characters/makehuman_muscular_male/makehuman_muscular_male.glb");
+  const std::string neutral = test::sharedPath("characters/makehuman_neutral/makehuman_neutral.glb");
+  MYOSKIN_REQUIRE_SHARED(muscular);
+  MYOSKIN_REQUIRE_SHARED(neutral);
+  const Character cm = loadCharacter(muscular), cn = loadCharacter(neutral);
+  for (double f : {0.95, 1.0, 1.05}) {
+    auto spaced = [&](const Character& c) {
+      const Vec3 lo = c.mesh.vertices.colwise().minCoeff().transpose(), hi = c.mesh.vertices.colwise().maxCoeff().transpose();
+      ExtractionOptions q = o;
+      q.planes.spacing = f * (hi - lo).maxCoeff() / 80.0;
+      return q;
+    };
+    const ExtractionResult rm = extractMuscles(cm, spaced(cm)), rn = extractMuscles(cn, spaced(cn));
+    const MirrorReport mr = mirrorReport(rm.muscles, 0.01);
+    std::printf("faint hysteresis, spacing x %.2f: muscular %zu, neutral %zu; %d of %d mirrored (worst %.5f m), %d "
+                "sections made exactly symmetric\n", f, rm.muscles.size(), rn.muscles.size(), mr.paired, mr.muscles,
+                mr.worst, rm.report.mirrored);
+    EXPECT_GE(rm.muscles.size(), 10u) << f;
+    EXPECT_LE(2 * rn.muscles.size(), rm.muscles.size()) << f;
+    EXPECT_EQ(mr.paired, mr.muscles) << f;
+    EXPECT_LT(mr.worst, 0.001) << f;
+    EXPECT_GT(rm.report.mirrored, rm.report.split) << f;  // limb twins too
+  }
 }
 
 // ============================================================================

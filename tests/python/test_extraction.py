@@ -59,6 +59,26 @@ def test_user_control_options(core, arm):
     assert with_h["recall"] >= without["recall"] and with_h["precision"] >= without["precision"]
 
 
+def test_makehuman_trunk_is_mirror_consistent(core):
+    character = core.load_character(shared(MUSCULAR))
+    muscles, report = core.extract_muscles(character, build_surfaces=False)
+    assert report["split"] > 10 and report["mirrored"] == report["split"], report
+    centres = np.array([np.asarray(m.section_centers).mean(axis=0) for m in muscles])
+    mirrored = centres * [-1.0, 1.0, 1.0]
+    nearest = np.linalg.norm(centres[:, None, :] - mirrored[None, :, :], axis=2).min(axis=1)
+    assert nearest.max() < 0.01, nearest  # every muscle has a mirror image within 1 cm
+    # The trunk floor only removes muscles; 0 leaves min_relative (9 %) for the trunk too.
+    loose, _ = core.extract_muscles(character, build_surfaces=False, min_relative_trunk=0.0)
+    assert len(loose) >= len(muscles)
+    with pytest.raises(ValueError, match="min_relative_trunk"):
+        core.extract_muscles(character, min_relative_trunk=-1.0)
+    # Opt-in: mirrored limb profiles averaged too, so every muscle's mirror image is exact (to rounding).
+    twins, twin_report = core.extract_muscles(character, build_surfaces=False, mirror_limbs=True)
+    assert twin_report["mirrored"] > twin_report["split"]
+    c = np.array([np.asarray(m.section_centers).mean(axis=0) for m in twins])
+    assert np.linalg.norm(c[:, None, :] - (c * [-1.0, 1.0, 1.0])[None, :, :], axis=2).min(axis=1).max() < 1e-3
+
+
 def test_muscles_round_trip_through_json(core, arm):
     muscles, _ = core.extract_muscles(arm[0], build_surfaces=False)
     again = core.muscles_from_json(core.muscles_to_json(muscles))

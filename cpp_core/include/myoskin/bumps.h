@@ -1,6 +1,7 @@
 // Stages 3-4 of extraction: bumps on a section polygon (constrained Delaunay triangulation, triangle
 // classification, the paper's semicircle rule, a significance test) and the weighted ellipse per bump.
 #pragma once
+#include <array>
 #include <string>
 #include <vector>
 
@@ -14,10 +15,25 @@ enum class TriangleKind { Junction = 0, Sleeve = 1, Terminal = 2 };  // number o
 struct SectionTriangulation {
   Triangles triangles;             // #T by 3 indices into the polygon, counter-clockwise
   std::vector<TriangleKind> kinds;  // #T
+  std::vector<std::array<int, 2>> diagonals;  // the requested diagonals forced into it (polygon indices); with
+                                             // one, triangles are ordered by their vertices' distance along the
+                                             // polygon from its first end, the same on both sides of the split
 };
 
 // Throws InputError for fewer than 3 points, non-finite points or a self-intersecting polygon.
-SectionTriangulation triangulateSection(const Points2& polygon);
+// `diagonals` (polygon index pairs, optional) are forced into the triangulation as constrained edges, so
+// that no triangle crosses them: a bilaterally symmetric section split along its mirror axis triangulates
+// as two mirror images (an unsplit one cannot: the mirrored point pairs across the axis form cocircular
+// trapezoids whose diagonal the Delaunay rule leaves to chance). A diagonal that is not a proper inner
+// diagonal (adjacent or equal ends, leaving the polygon, touching the boundary or another diagonal) is
+// left out; `diagonals` of the result lists the ones used. The bump stage does not merge across them (a
+// split is no chord of the skin) and does not join hills on its two sides.
+SectionTriangulation triangulateSection(const Points2& polygon, const std::vector<std::array<int, 2>>& diagonals = {});
+
+// The diagonal along a section's plane y axis (a torso section's mirror axis, CuttingPlane::mirrorAxis): from
+// the vertex nearest the +y axis crossing to the vertex nearest the -y axis crossing of the polygon (plane
+// coordinates, the plane origin inside). {-1, -1} when the polygon does not cross both half axes.
+std::array<int, 2> axisDiagonal(const Points2& polygon);
 
 struct BumpOptions {
   double minProtrusion = 0.0035;     // metres: a bump must stand this far out of its smooth base

@@ -65,13 +65,29 @@ struct ExtractionOptions {
   double forcedMinProtrusion = 0.0005;         // metres: bumps weaker than this are not forced either
   double weakFraction = 0.8;                   // hysteresis: bumps down to this share of the significance
                                                // threshold are linked too, so a muscle whose bump fades
-                                               // towards its tendons is followed further; a muscle needs
-                                               // link.minSections significant sections. 1 = no hysteresis
+                                               // towards its tendons (or under a neighbour) is followed further;
+                                               // a muscle needs link.minSections significant sections.
+                                               // 1 = no hysteresis. Measured: 0.8 follows the synthetic seed 2's
+                                               // brachialis over 5 sections (46 % of its length: a miss), 0.5 over 7
+                                               // (61 %: recall and precision 1.0 on seeds 0-3; with
+                                               // profiles.mirrorLimbs MakeHuman's calves stay mirrored), but 0.5 also
+                                               // lengthens the synthetic arm's biceps towards the elbow: the hybrid
+                                               // skinning's elbow region at 35 degrees grows +6.5 % (0.6: +4.4 %)
+                                               // where LBS loses 3.6 % (0.8: +2.9 %), failing test_hybrid_skinning
+  double magnitudeFraction = 0.8;              // the magnitude floors (minRelative, minRelativeTrunk) average only
+                                               // the bumps of at least this share of the threshold, so faint tail
+                                               // links extend a muscle without diluting its magnitude
   double minRelative = 0.09;                   // a muscle's bumps must on average stand out at least this share of
                                                // their sections' mean radius (a belly is large for its limb; soft
                                                // body contours of thick sections are not); forced ones are kept.
                                                // Measured: synthetic muscles 0.106-0.33, MakeHuman neutral's
                                                // flattest contours 0.083-0.085 (0 = off)
+  double minRelativeTrunk = 0.15;              // the same floor for the trunk families (abdomen, neck: planes across
+                                               // the whole body): a thick trunk section's soft relief (belly, flanks)
+                                               // stands out about as far, for its size, as a limb's belly. Measured
+                                               // (plane spacing x 0.95-1.05): MakeHuman neutral's abdomen chains
+                                               // 0.10-0.15 (0.151 at x 0.975, which passes), the muscular male's
+                                               // 0.10-0.28 (0.19 at the default); the larger of the two applies
   double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones are kept)
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
 };
@@ -92,6 +108,8 @@ struct ExtractionReport {
   int bones = 0, activeBones = 0;     // bones, bones with a role other than Ignore
   int planes = 0;
   int sections = 0;                   // profiles that gave a clean loop
+  int mirrored = 0;                   // trunk profiles made exactly mirror-symmetric (ProfileOptions::mirrorTolerance)
+  int split = 0;                      // trunk sections triangulated as two halves along their mirror axis
   int bumps = 0;                      // significant bumps over all sections
   int chains = 0;                     // linked chains before the minimum-section filter
   int branches = 0;                   // transition sections placed at merges/splits

@@ -40,6 +40,10 @@ struct CuttingPlane {
   Vec3 yAxis = Vec3::UnitZ();
   double clipRadius = 0.0;  // > 0: the profile keeps only the skin within this distance of the origin (planes
                             // on shoulder bones, which cut the whole side of the torso), closed by a chord
+  bool mirrorAxis = false;  // the plane's y axis lies in the skeleton's mirror (sagittal) plane: torso planes
+                            // normal to the spine or neck, whose rest X axis points sideways (Rigify, MakeHuman,
+                            // Mixamo). Such sections get an even sample count (mirrored samples on a symmetric
+                            // body) and are triangulated as two halves split along the y axis
   std::vector<int> region;  // bones whose skin the profile must stay on (by each vertex's dominant bone);
                             // empty = anywhere. Limbs: the chain, its subtree and its parent; torso
                             // families: every bone outside the limbs (the shoulder also the arm's first bone)
@@ -82,6 +86,8 @@ struct SectionProfile {
   std::vector<char> inMask;  // #P: the point lies on masked skin (all 1 without a mask)
   std::vector<char> onSkin;  // #P: 1 on the skin, 0 on the chord that closes a clipped profile (empty = all 1)
   double perimeter = 0.0;   // metres
+  bool symmetric = false;   // made exactly mirror-symmetric (ProfileOptions::mirrorTolerance): about the plane's y
+                            // axis (trunk), or with its mirrored twin on the other side (limbs)
   bool ok = false;
   std::string skipReason;   // why the section was skipped (no loop around the bone, open loop, ...)
 };
@@ -90,6 +96,14 @@ struct ProfileOptions {
   int samples = 0;  // points per profile after even resampling; 0 = derived (~2 mm apart, 48..400)
   double minRegionShare = 0.9;  // share of the loop's length that must lie on the plane's region
   double minPerimeter = 0.01;   // metres: smaller loops are skipped
+  double mirrorTolerance = 0.002;  // metres: a mirror-axis section (CuttingPlane::mirrorAxis) whose mirrored
+                                   // samples pair up within this is made exactly symmetric (each pair averaged),
+                                   // so the bump stage sees both sides alike; 0 = never
+  bool mirrorLimbs = false;  // also average a left and a right plane's profiles that mirror each other about the
+                             // trunk's mirror plane within mirrorTolerance (limbs, shoulders), so mirrored limbs give
+                             // exactly mirrored bumps. Off by default: measured on MakeHuman, limbs are mirrored
+                             // within 1 cm without it at the default hysteresis, and with it the neutral body keeps
+                             // 8 muscles instead of 6; it is needed for fainter hysteresis (weakFraction 0.5)
 };
 
 // Cut every plane through the skin: the closed loop enclosing the plane origin (the smallest one), kept when

@@ -17,8 +17,11 @@
 //  - one bump per hill: significant regions whose apexes are not separated by a valley at least as deep
 //    as the threshold are one group; the group keeps its smallest region that still has 85 % of the
 //    group's best protrusion (the region that spans the hill from valley to valley); finally bumps whose
-//    arcs overlap by more than half of the shorter one are deduplicated, keeping the most significant.
+//    arcs overlap by more than half of the shorter one are deduplicated, keeping the most significant;
+//  - a triangulation split along a diagonal (a trunk section's mirror axis) keeps its sides apart: no region
+//    bounded by the split is a bump and hills on its two sides are never grouped.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
 #include <vector>
@@ -42,6 +45,7 @@ constexpr double kGroupKeep = 0.85;        // a group's representative keeps thi
 constexpr double kMaxOverlap = 0.5;        // bumps overlapping more than this share of the shorter arc merge
 constexpr int kSupportIterations = 6;      // refits of the base to the skin it explains
 constexpr double kSupportMargin = 0.02;    // another candidate must score this much higher than the lower envelope
+constexpr double kTwinTolerance = 1e-12;  // metres: residuals this close count as equally high (hill spans)
 constexpr double kRoundness = 0.5;         // score penalty per unit of (longest / shortest base radius - 1)
 
 // Residual of each cleaned polygon vertex above the section's smooth base shape.
@@ -265,11 +269,15 @@ std::vector<Candidate> hillCandidates(const detail::SectionPolygon& s, const Pro
   std::vector<Candidate> out;
   for (int i = 0; i < m; ++i) {
     if (!(e[i] >= e[s.prev(i)] && e[i] > e[s.next(i)])) continue;
+    // A residual within rounding of the apex's counts as higher, so twin peaks (a mirror-symmetric section's
+    // two sides) each stop at the other instead of one of them spanning the whole section; of equally low
+    // valleys the nearest is the key col, so twins pick mirrored ones.
+    const double top = e[i] - kTwinTolerance;
     int lv = i, rv = i;
-    for (int j = s.prev(i), k = 0; k < m - 1 && e[j] <= e[i]; j = s.prev(j), ++k)
-      if (e[j] < e[lv]) lv = j;
-    for (int j = s.next(i), k = 0; k < m - 1 && e[j] <= e[i]; j = s.next(j), ++k)
-      if (e[j] < e[rv]) rv = j;
+    for (int j = s.prev(i), k = 0; k < m - 1 && e[j] < top; j = s.prev(j), ++k)
+      if (e[j] < e[lv] - kTwinTolerance) lv = j;  // equally low valleys: the nearest
+    for (int j = s.next(i), k = 0; k < m - 1 && e[j] < top; j = s.next(j), ++k)
+      if (e[j] < e[rv] - kTwinTolerance) rv = j;
     if (lv == i || rv == i || lv == rv) continue;
     Candidate c = measureCandidate(s, pr, lv, rv);
     c.apex = i;
@@ -295,8 +303,25 @@ std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options,
     triangulation = &own;
   }
   const detail::TriangleAdjacency adj = detail::buildAdjacency(s, triangulation->triangles);
-  const std::vector<detail::MergedRegion> regions =
-      detail::semicircleRegions(s, adj, std::max(0.0, options.semicircleTolerance), options.absorbJunctions);
+  std::vector<std::array<int, 2>> splits;  // forced diagonals, cleaned indices
+  for (const auto& d : triangulation->diagonals) splits.push_back({s.cleanedOf[d[0]], s.cleanedOf[d[1]]});
+  const std::vector<detail::MergedRegion> regions = detail::semicircleRegions(
+      s, adj, std::max(0.0, options.semicircleTolerance), options.absorbJunctions, splits);
+  // Side of a vertex relative to each split: 0 on it, 1 or 2 on either side. A split is no chord of the skin:
+  // a region bounded by it is no bump, and hills on its two sides are never one.
+  auto isSplit = [&](int a, int b) {
+    for (const auto& d : splits)
+      if ((d[0] == a && d[1] == b) || (d[0] == b && d[1] == a)) return true;
+    return false;
+  };
+  auto acrossSplit = [&](int a, int b) {
+    for (const auto& d : splits) {
+      auto side = [&](int v) { return v == d[0] || v == d[1] ? 0 : s.forward(d[0], v) < s.forward(d[0], d[1]) ? 1 : 2; };
+      const int sa = side(a), sb = side(b);
+      if (sa && sb && sa != sb) return true;
+    }
+    return false;
+  };
   double meanRadius = 0.0;  // the threshold needs the mean radius first
   {
     double arc = 0.0;
@@ -315,6 +340,7 @@ std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options,
   for (size_t r = 0; r < regions.size(); ++r) {
     Candidate c = measureCandidate(s, pr, regions[r].first, regions[r].last);
     c.region = static_cast<int>(r);
+    if (isSplit(c.first, c.last)) continue;
     if (c.length < 2 || c.width < options.minWidthFraction || c.width > options.maxWidthFraction) continue;
     if (!(c.protrusion >= threshold) || !(c.protrusion > 0.0)) continue;
     cands.push_back(c);
@@ -322,6 +348,7 @@ std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options,
   // Hills too: on densely sampled sections the semicircle rule stops early, before a region spans its hill.
   // A hill candidate belongs to the smallest merged region that holds its apex (its terminal triangle).
   for (Candidate c : hillCandidates(s, pr)) {
+    if (isSplit(c.first, c.last)) continue;
     if (c.length < 2 || c.width < options.minWidthFraction || c.width > options.maxWidthFraction) continue;
     if (!(c.protrusion >= threshold) || !(c.protrusion > 0.0)) continue;
     int best = -1;
@@ -343,7 +370,9 @@ std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options,
   for (int c = 0; c < static_cast<int>(cands.size()); ++c) {
     bool joined = false;
     for (auto& g : groups)
-      if (cands[g.front()].apex == cands[c].apex || sameHill(s, pr, cands[g.front()].apex, cands[c].apex, threshold)) {
+      if (cands[g.front()].apex == cands[c].apex ||
+          (!acrossSplit(cands[g.front()].apex, cands[c].apex) &&
+           sameHill(s, pr, cands[g.front()].apex, cands[c].apex, threshold))) {
         g.push_back(c);
         joined = true;
         break;

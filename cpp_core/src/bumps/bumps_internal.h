@@ -58,7 +58,9 @@ struct MergedRegion {
 // `absorbJunctions`, a junction triangle two of whose branches merged up to it (both inside their
 // semicircles) joins them into one region that merges on across its third edge (the branch pruning of the
 // chordal axis the paper cites, ref. 21); every stopped state is returned, including absorbed ones.
+// Merging never crosses a diagonal in `splits` (cleaned index pairs; a region whose diameter is one stops there).
 std::vector<MergedRegion> semicircleRegions(const SectionPolygon& section, const TriangleAdjacency& adjacency,
-                                            double tolerance, bool absorbJunctions);
+                                            double tolerance, bool absorbJunctions,
+                                            const std::vector<std::array<int, 2>>& splits = {});
 
 }  // namespace myoskin::detail

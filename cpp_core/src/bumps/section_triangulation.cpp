@@ -7,6 +7,8 @@
 #include <CGAL/Triangulation_vertex_base_with_info_2.h>
 #include <CGAL/exceptions.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <string>
 #include <utility>
@@ -100,7 +102,7 @@ SectionPolygon cleanSection(const Points2& polygon) {
 // ============================================================================
 
 // CDT of the polygon; inside faces by flood fill from the infinite face across unconstrained edges.
-SectionTriangulation triangulateSection(const Points2& polygon) {
+SectionTriangulation triangulateSection(const Points2& polygon, const std::vector<std::array<int, 2>>& diagonals) {
   const detail::SectionPolygon s = detail::cleanSection(polygon);
   const int m = s.size();
 
@@ -146,6 +148,51 @@ SectionTriangulation triangulateSection(const Points2& polygon) {
   for (int i = 0; i < m && simple; ++i) simple = constrainedAt[i] == 2;
   if (!simple) throw InputError("section polygon intersects or touches itself");
 
+  // Forced diagonals: proper inner diagonals only (exact predicates), then constrained like the boundary.
+  std::vector<std::array<int, 2>> used;  // cleaned indices
+  for (const auto& dg : diagonals) {
+    if (dg[0] < 0 || dg[1] < 0 || dg[0] >= static_cast<int>(polygon.rows()) || dg[1] >= static_cast<int>(polygon.rows()))
+      continue;
+    const int i = s.cleanedOf[dg[0]], j = s.cleanedOf[dg[1]];
+    if (i == j || s.next(i) == j || s.next(j) == i) continue;
+    const CgalPoint pi = handle[i]->point(), pj = handle[j]->point();
+    const Kernel::Segment_2 seg(pi, pj);
+    bool ok = true;
+    // It must enter the polygon's interior at both ends ...
+    for (int e : {i, j}) {
+      const CgalPoint v = handle[e]->point(), q = e == i ? pj : pi;
+      CgalPoint prev = handle[s.prev(e)]->point(), next = handle[s.next(e)]->point();
+      if (s.orientation < 0) std::swap(prev, next);
+      const bool convex = CGAL::orientation(prev, v, next) == CGAL::LEFT_TURN;
+      const bool afterNext = CGAL::orientation(v, next, q) == CGAL::LEFT_TURN;  // left of v -> next
+      const bool beforePrev = CGAL::orientation(v, q, prev) == CGAL::LEFT_TURN;  // right of v -> prev
+      ok &= convex ? afterNext && beforePrev
+                   : !(CGAL::orientation(v, prev, q) != CGAL::RIGHT_TURN && CGAL::orientation(v, q, next) != CGAL::RIGHT_TURN);
+    }
+    // ... and meet no boundary edge or vertex, nor another forced diagonal, on the way.
+    for (int a = 0; a < m && ok; ++a) {
+      const int b = s.next(a);
+      const CgalPoint pa = handle[a]->point(), pb = handle[b]->point();
+      if (a == i || a == j || b == i || b == j) {
+        for (int k : {a, b})
+          if (k != i && k != j && seg.has_on(handle[k]->point())) ok = false;
+      } else if (CGAL::do_intersect(seg, Kernel::Segment_2(pa, pb))) {
+        ok = false;
+      }
+    }
+    for (const auto& u : used)
+      if (ok && u[0] != i && u[0] != j && u[1] != i && u[1] != j &&
+          CGAL::do_intersect(seg, Kernel::Segment_2(handle[u[0]]->point(), handle[u[1]]->point())))
+        ok = false;
+    if (!ok) continue;
+    try {
+      cdt.insert_constraint(handle[i], handle[j]);
+    } catch (const std::exception&) {
+      continue;
+    }
+    used.push_back({i, j});
+  }
+
   // Outside = reachable from the infinite face without crossing a constraint.
   for (auto f = cdt.all_faces_begin(); f != cdt.all_faces_end(); ++f) f->info() = 0;
   std::vector<Cdt::Face_handle> stack{cdt.infinite_face()};
@@ -181,7 +228,63 @@ SectionTriangulation triangulateSection(const Points2& polygon) {
     ++count;
   }
   if (count != m - 2) throw InputError("section polygon is degenerate (inside triangles do not cover it)");
+  for (const auto& u : used) t.diagonals.push_back({s.original[u[0]], s.original[u[1]]});
+  {
+    // Order by the vertices' distances along the polygon from the first diagonal's first end (else from vertex 0):
+    // invariant under the reflection that swaps the split's sides, and the same for a polygon and its mirror image
+    // resampled from the same axis point, so mirrored sections merge in the same order.
+    const int root = used.empty() ? 0 : used.front()[0];
+    auto key = [&](Eigen::Index r) {
+      std::array<int, 3> k;
+      for (int c = 0; c < 3; ++c) {
+        const int v = s.cleanedOf[t.triangles(r, c)];
+        k[c] = std::min(s.forward(root, v), s.forward(v, root));
+      }
+      std::sort(k.begin(), k.end());
+      return k;
+    };
+    std::vector<Eigen::Index> order(m - 2);
+    for (int r = 0; r < m - 2; ++r) order[r] = r;
+    std::vector<std::array<int, 3>> keys(m - 2);
+    for (int r = 0; r < m - 2; ++r) keys[r] = key(r);
+    std::stable_sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return keys[a] < keys[b]; });
+    SectionTriangulation sorted;
+    sorted.triangles.resize(m - 2, 3);
+    for (int r = 0; r < m - 2; ++r) {
+      sorted.triangles.row(r) = t.triangles.row(order[r]);
+      sorted.kinds.push_back(t.kinds[order[r]]);
+    }
+    sorted.diagonals = std::move(t.diagonals);
+    return sorted;
+  }
   return t;
+}
+
+}  // namespace myoskin
+
+namespace myoskin {
+
+// ============================================================================
+// Mirror axis
+// ============================================================================
+
+// The vertices nearest the polygon's crossings of the +y and -y half axes (the crossings nearest the origin).
+std::array<int, 2> axisDiagonal(const Points2& polygon) {
+  const int n = static_cast<int>(polygon.rows());
+  int best[2] = {-1, -1};
+  double bestY[2] = {INFINITY, INFINITY};  // |y| of the crossing
+  for (int k = 0; k < n; ++k) {
+    const int l = (k + 1) % n;
+    const double x0 = polygon(k, 0), x1 = polygon(l, 0);
+    if (!((x0 <= 0.0 && x1 > 0.0) || (x0 > 0.0 && x1 <= 0.0) || (x0 == 0.0 && x1 == 0.0))) continue;
+    const double t = x0 == x1 ? 0.0 : x0 / (x0 - x1);
+    const double y = polygon(k, 1) + t * (polygon(l, 1) - polygon(k, 1));
+    if (!std::isfinite(y) || y == 0.0) continue;
+    const int side = y > 0.0 ? 0 : 1;
+    if (std::abs(y) < bestY[side]) bestY[side] = std::abs(y), best[side] = t <= 0.5 ? k : l;
+  }
+  if (best[0] < 0 || best[1] < 0) return {-1, -1};
+  return {best[0], best[1]};
 }
 
 }  // namespace myoskin

@@ -96,7 +96,12 @@ bool insideSemicircle(const SectionPolygon& s, int first, int last, double toler
 
 // Merges from every terminal triangle (queue order = triangle order, so the result is deterministic).
 std::vector<MergedRegion> semicircleRegions(const SectionPolygon& s, const TriangleAdjacency& adj, double tolerance,
-                                            bool absorbJunctions) {
+                                            bool absorbJunctions, const std::vector<std::array<int, 2>>& splits) {
+  auto isSplit = [&](int a, int b) {
+    for (const auto& d : splits)
+      if ((d[0] == a && d[1] == b) || (d[0] == b && d[1] == a)) return true;
+    return false;
+  };
   const int nt = static_cast<int>(adj.vertices.size());
   struct Growing {
     MergedRegion region;
@@ -133,7 +138,7 @@ std::vector<MergedRegion> semicircleRegions(const SectionPolygon& s, const Trian
         reg.stop = MergedRegion::Stop::Outside;
         break;
       }
-      if (owner[across] >= 0) {
+      if (owner[across] >= 0 || isSplit(reg.first, reg.last)) {
         reg.stop = MergedRegion::Stop::Met;
         break;
       }

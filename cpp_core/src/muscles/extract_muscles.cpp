@@ -28,6 +28,7 @@ struct SectionWork {
   std::vector<double> significance;
   std::vector<double> relative;
   std::vector<int> forcedRegion;  // per ellipse: forced region index or -1
+  bool split = false;             // triangulated as two halves along the mirror axis
 };
 
 // Does bump arc [first, last] (counter-clockwise, wrapping) contain polygon index i?
@@ -111,7 +112,14 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       return;
     }
     try {
-      const SectionTriangulation tri = triangulateSection(prof.polygon);
+      // Torso sections are split along their mirror axis, so a symmetric body's two sides triangulate alike.
+      std::vector<std::array<int, 2>> split;
+      if (prof.plane.mirrorAxis && prof.onSkin.empty()) {
+        const std::array<int, 2> axis = axisDiagonal(prof.polygon);
+        if (axis[0] >= 0) split.push_back(axis);
+      }
+      const SectionTriangulation tri = triangulateSection(prof.polygon, split);
+      w.split = !tri.diagonals.empty();
       // Hysteresis: bumps down to weakFraction of the threshold, significance still relative to the threshold.
       const double weak = std::clamp(options.weakFraction, 1e-3, 1.0);
       BumpOptions low = options.bumps;
@@ -206,6 +214,8 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       continue;
     }
     ++rep.sections;
+    rep.mirrored += profiles[i].symmetric;
+    rep.split += work[i].split;
     SectionBumps s;
     s.plane = profiles[i].plane;
     s.ellipses = work[i].ellipses;
@@ -244,13 +254,16 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       ++rep.droppedShort;
       continue;
     }
-    if (options.minRelative > 0) {  // the bumps' mean height relative to their sections' size
+    const bool trunk = c.family == "abdomen" || c.family == "neck";
+    const double floor = trunk ? std::max(options.minRelative, options.minRelativeTrunk) : options.minRelative;
+    if (floor > 0) {  // the bumps' mean height relative to their sections' size (the faint tail links left out)
       double sum = 0.0;
       int count = 0;
       for (const ChainLink& l : c.links)
-        if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].relative.size()))
+        if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].relative.size()) &&
+            sections[l.section].significance[l.bump] >= options.magnitudeFraction)
           sum += sections[l.section].relative[l.bump], ++count;
-      if (count == 0 || sum < options.minRelative * count) {
+      if (count == 0 || sum < floor * count) {
         ++rep.droppedFlat;
         continue;
       }

@@ -212,9 +212,28 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
                       std::to_string(static_cast<int>(100 * onRegion / perimeter)) + " % on it";
     return prof;
   }
-  const int count = o.samples > 0 ? o.samples : std::clamp(static_cast<int>(std::lround(perimeter / 0.002)), 48, 400);
+  int count = o.samples > 0 ? o.samples : std::clamp(static_cast<int>(std::lround(perimeter / 0.002)), 48, 400);
+  if (plane.mirrorAxis && o.samples <= 0) count += count % 2;  // the -Y crossing is then a sample too
   std::vector<int> source;
   prof.polygon = resample(loop.points, count, source);
+  if (plane.mirrorAxis && count % 2 == 0 && o.mirrorTolerance > 0 && skin.empty()) {
+    // Sample k mirrors sample count - k (both start on the +Y axis and run the same arc length): when every pair
+    // matches within the tolerance, average each pair so the two sides are exact mirror images.
+    double worst = 0.0;
+    for (int k = 0; k <= count / 2; ++k) {
+      const int j = (count - k) % count;
+      worst = std::max(worst, std::hypot(prof.polygon(k, 0) + prof.polygon(j, 0), prof.polygon(k, 1) - prof.polygon(j, 1)));
+    }
+    if (worst <= o.mirrorTolerance) {
+      for (int k = 0; k <= count / 2; ++k) {
+        const int j = (count - k) % count;
+        const double x = 0.5 * (prof.polygon(k, 0) - prof.polygon(j, 0)), y = 0.5 * (prof.polygon(k, 1) + prof.polygon(j, 1));
+        prof.polygon.row(k) << x, y;
+        prof.polygon.row(j) << -x, y;  // k == j on the axis: x is then exactly 0
+      }
+      prof.symmetric = true;
+    }
+  }
   prof.inMask.assign(count, 1);
   if (!skin.empty()) {  // a resampled point is on the skin when the loop segment it lies on is
     prof.onSkin.assign(count, 1);
@@ -237,6 +256,53 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
   }
   prof.ok = true;
   return prof;
+}
+
+// ============================================================================
+// Mirrored twins
+// ============================================================================
+
+// A left and a right plane of one family and order whose frames mirror each other about the trunk's mirror
+// plane (through the first mirror-axis plane's origin, normal to its X axis; mirrored limbs' X axes are mirrored
+// and negated) give profiles where sample k of one mirrors sample N - k of the other in plane coordinates,
+// (x, y) -> (-x, y). When every pair matches within the tolerance, both become the average, exact mirror images.
+void mirrorTwins(const std::vector<CuttingPlane>& planes, double tolerance, std::vector<SectionProfile>& out) {
+  if (!(tolerance > 0)) return;
+  const auto axis = std::find_if(planes.begin(), planes.end(), [](const CuttingPlane& p) { return p.mirrorAxis; });
+  if (axis == planes.end()) return;
+  const Vec3 c = axis->origin, n = axis->xAxis.normalized();
+  auto point = [&](const Vec3& p) { return Vec3(p - 2.0 * (p - c).dot(n) * n); };
+  auto direction = [&](const Vec3& d) { return Vec3(d - 2.0 * d.dot(n) * n); };
+  std::vector<char> taken(planes.size(), 0);
+  for (size_t i = 0; i < planes.size(); ++i) {
+    const CuttingPlane& a = planes[i];
+    if (a.mirrorAxis || taken[i] || !out[i].ok || !out[i].onSkin.empty()) continue;
+    for (size_t j = i + 1; j < planes.size(); ++j) {
+      const CuttingPlane& b = planes[j];
+      if (taken[j] || b.family != a.family || b.familyIndex == a.familyIndex || b.order != a.order) continue;
+      if ((point(a.origin) - b.origin).norm() > tolerance || (direction(a.normal) - b.normal).norm() > 1e-3 ||
+          (direction(a.xAxis) + b.xAxis).norm() > 1e-3)
+        continue;
+      taken[j] = 1;
+      SectionProfile &p = out[i], &q = out[j];
+      const Eigen::Index count = p.polygon.rows();
+      if (!q.ok || !q.onSkin.empty() || q.polygon.rows() != count) break;
+      double worst = 0.0;
+      for (Eigen::Index k = 0; k < count; ++k) {
+        const Eigen::Index m = (count - k) % count;
+        worst = std::max(worst, std::hypot(p.polygon(k, 0) + q.polygon(m, 0), p.polygon(k, 1) - q.polygon(m, 1)));
+      }
+      if (worst > tolerance) break;
+      for (Eigen::Index k = 0; k < count; ++k) {
+        const Eigen::Index m = (count - k) % count;
+        const double x = 0.5 * (p.polygon(k, 0) - q.polygon(m, 0)), y = 0.5 * (p.polygon(k, 1) + q.polygon(m, 1));
+        p.polygon.row(k) << x, y;
+        q.polygon.row(m) << -x, y;
+      }
+      p.symmetric = q.symmetric = true;
+      break;
+    }
+  }
 }
 
 }  // namespace
@@ -272,6 +338,7 @@ std::vector<SectionProfile> cutSections(const Character& character, const std::v
       out[i].skipReason = std::string("cutting failed: ") + e.what();
     }
   });
+  if (options.mirrorLimbs) mirrorTwins(planes, options.mirrorTolerance, out);
   return out;
 }
 

@@ -163,8 +163,11 @@ std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const st
                 options.shoulderClip * length, planes);
   }
   index = 0;
-  for (const auto& chain : chainsOf(sk, roles, BoneRole::Neck))
+  for (const auto& chain : chainsOf(sk, roles, BoneRole::Neck)) {
+    const size_t first = planes.size();
     chainPlanes(sk, chain, "neck", index++, spacing, 0.0, options, torsoRegion, {}, 0.0, planes);
+    for (size_t i = first; i < planes.size(); ++i) planes[i].mirrorAxis = true;
+  }
 
   // Abdomen: the spine chain (pelvis bones below it do not count for the axis).
   const auto spines = chainsOf(sk, roles, BoneRole::Spine);
@@ -199,6 +202,7 @@ std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const st
       p.xAxis = xAxis;
       p.yAxis = up.cross(xAxis).normalized();
       p.region = torsoRegion;
+      p.mirrorAxis = true;
       planes.push_back(std::move(p));
     }
   }
