@@ -93,7 +93,7 @@ void bindSkinning(py::module_& m) {
           [](const Skinner& s, const DoubleArray& transforms) {
             const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
             py::array_t<float> out = newPointsF(s.numVertices());
-            float* data = out.mutable_data();
+            float* data = static_cast<float*>(out.mutable_data());
             {
               py::gil_scoped_release release;
               s.deform(t, data);
@@ -103,13 +103,14 @@ void bindSkinning(py::module_& m) {
           py::arg("transforms"), "transforms: #J by 4 by 4 skinning transforms -> #V by 3 float32 positions.")
       .def(
           "deform_into",
-          [](const Skinner& s, const DoubleArray& transforms, py::array_t<float> out) {
-            if (out.ndim() != 2 || out.shape(0) != s.numVertices() || out.shape(1) != 3 ||
-                !(out.flags() & py::array::c_style) || !out.writeable())
+          [](const Skinner& s, const DoubleArray& transforms, py::array out) {
+            // A plain py::array (no forcecast): a float64 `out` must fail, not fill a temporary copy.
+            if (!out.dtype().is(py::dtype::of<float>()) || out.ndim() != 2 || out.shape(0) != s.numVertices() ||
+                out.shape(1) != 3 || !(out.flags() & py::array::c_style) || !out.writeable())
               throw InputError("out must be a writeable C-contiguous float32 array of shape (" +
                                std::to_string(s.numVertices()) + ", 3), got " + shapeOf(out));
             const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
-            float* data = out.mutable_data();
+            float* data = static_cast<float*>(out.mutable_data());
             py::gil_scoped_release release;
             s.deform(t, data);
           },
@@ -155,7 +156,7 @@ void bindSkinning(py::module_& m) {
       "skinning_transforms",
       [](const Character& c, const DoubleArray& poseMatrices, const PyMuscleRig& rig, const DoubleArray& jointMatrices) {
         const Pose pose = poseFromArray(poseMatrices, c.skeleton.numBones());
-        MuscleRigState state = rig.makeState();
+        MuscleRigState state;  // only the joint matrices are read (no copy of the rest surfaces)
         state.jointMatrices = matricesFromArray(jointMatrices, "joint_matrices");
         std::vector<Mat4> t;
         skinningTransforms(c.skeleton, pose, rig, state, t);

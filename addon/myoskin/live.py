@@ -151,7 +151,7 @@ def update_armature(arm_obj, depsgraph=None, force=False, surfaces=None):
     when it wrote something."""
     live = live_rig(arm_obj)
     pose = evaluated_pose(arm_obj, live, depsgraph)
-    if not force and live.last_pose is not None and np.abs(pose - live.last_pose).max() <= PREDICT_TOLERANCE:
+    if not force and same_pose(pose, live.last_pose):
         return False
     write_pose(arm_obj, live, pose, muscles_visible(arm_obj) if surfaces is None else surfaces)
     stats["written"] += 1
@@ -194,7 +194,7 @@ def update_surfaces(arm_obj, depsgraph=None):
         return False
     live = live_rig(arm_obj)
     pose = evaluated_pose(arm_obj, live, depsgraph)
-    if live.last_surface_pose is not None and np.abs(pose - live.last_surface_pose).max() <= PREDICT_TOLERANCE:
+    if same_pose(pose, live.last_surface_pose):
         return False
     write_surfaces(arm_obj, live, live.rig.evaluate(pose, with_surfaces=True)["surfaces"])
     live.last_surface_pose = pose
@@ -205,7 +205,15 @@ def update_surfaces(arm_obj, depsgraph=None):
 # Prediction of the skeleton's pose from F-curves (frame_change_pre)
 # ------------------------------------------------------------------------------------------------
 
-PREDICT_TOLERANCE = 1e-6  # predicted vs evaluated pose matrices: below this no second evaluation
+PREDICT_TOLERANCE = 1e-6  # predicted vs evaluated pose matrices, relative to the rig's size (float32 data)
+
+
+def same_pose(pose, previous):
+    """True when two #B by 4 by 4 poses agree within PREDICT_TOLERANCE x max(1 m, the largest translation)."""
+    if previous is None:
+        return False
+    scale = max(1.0, float(np.abs(previous[:, :3, 3]).max()))
+    return float(np.abs(pose - previous).max()) <= PREDICT_TOLERANCE * scale
 
 
 def _predictable(arm_obj, live):
@@ -276,6 +284,16 @@ def predict_armature(arm_obj, frame):
     return True
 
 
+def stop_live(arm_obj, error):
+    """A handler failed: say why and turn live update off through the property, so its update callback
+    unmutes the baked joint keys and the baked Action plays (the ID property is the fallback)."""
+    print(f"Myoskin: live update of '{arm_obj.name}' stopped: {error}")
+    try:
+        arm_obj.myoskin.live = False
+    except Exception:  # noqa: BLE001
+        arm_obj.myoskin["live"] = False
+
+
 @persistent
 def on_frame_change_pre(scene, depsgraph=None):
     global _busy
@@ -290,8 +308,7 @@ def on_frame_change_pre(scene, depsgraph=None):
             try:
                 predict_armature(arm, scene.frame_current_final)
             except Exception as e:  # noqa: BLE001  (a handler must never raise into Blender)
-                print(f"Myoskin: live update of '{arm.name}' stopped: {e}")
-                arm.myoskin["live"] = False
+                stop_live(arm, e)
     finally:
         _busy = False
 
@@ -311,8 +328,7 @@ def on_update(scene, depsgraph=None):
             try:
                 update_armature(arm, depsgraph)
             except Exception as e:  # noqa: BLE001  (a handler must never raise into Blender)
-                print(f"Myoskin: live update of '{arm.name}' stopped: {e}")
-                arm.myoskin["live"] = False
+                stop_live(arm, e)
         for arm in baked:
             try:
                 update_surfaces(arm, depsgraph)
@@ -348,7 +364,9 @@ def forget(arm_name=None):
 @persistent
 def on_reload(*_args):
     """load_post / undo_post / redo_post: the data were replaced, so cached rigs and poses are stale."""
+    from . import rig_io
     forget()
+    rig_io.forget_structures()
 
 
 def _handlers():

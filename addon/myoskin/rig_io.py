@@ -105,6 +105,7 @@ def create_muscle_bones(armature_obj, joint_names, bind_matrices, parent_bones, 
     tagged JOINT_TAG. Existing bones of the same names are replaced. Returns the bone names.
     Raises ValueError on bad input (sizes, NaN, unknown parent) and RuntimeError when Blender cannot
     represent a bind matrix (it is not rigid)."""
+    forget_structures()
     _require_armature(armature_obj, "create_muscle_bones")
     names = [str(n) for n in joint_names]
     if len(set(names)) != len(names) or any(not n for n in names):
@@ -180,6 +181,7 @@ def remove_muscle_bones(armature_obj, names=None, remove_vertex_groups=True):
     """Remove muscle-joint bones (names=None: every bone tagged JOINT_TAG; only tagged bones are ever
     removed) and, with remove_vertex_groups, their vertex groups on the meshes the armature deforms.
     Returns the number of bones removed."""
+    forget_structures()
     _require_armature(armature_obj, "remove_muscle_bones")
     tagged = set(muscle_bone_names(armature_obj))
     targets = tagged if names is None else {n for n in names if n in tagged}
@@ -250,7 +252,12 @@ def pose_bone_matrices(armature_obj, bone_names=None):
     return m[idx]
 
 
-_structure_cache = {}
+_structure_cache = {}  # cleared whenever joint bones are created or removed (and on file load/undo)
+
+
+def forget_structures():
+    """Drop the cached joint layouts (bones were re-created: same names may now have other parents)."""
+    _structure_cache.clear()
 
 
 def _joint_structure(armature_obj, names):

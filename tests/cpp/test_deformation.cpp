@@ -381,6 +381,24 @@ TEST(MuscleRig, JointWrapBeginsAndEndsContinuously) {
   EXPECT_GT(st.stretch[0], 1.0);
 }
 
+TEST(MuscleRig, JointWrapOnTheInsideOfTheBendNeverGoesRoundTheBack) {
+  // A biceps-like muscle in front of the elbow with a sphere there: flexing moves the line O-I away from
+  // the sphere on the muscle's side, so the path stays short and continuous through 90 degrees and beyond.
+  Muscle mu = biceps();
+  mu.wrap.type = WrapType::Joint;
+  mu.wrap.bone = "forearm";
+  mu.wrap.radius = 0.012;
+  const MuscleRig rig(arm(), {mu});
+  MuscleRigState st = rig.makeState();
+  double prevLen = rig.restLengths()[0];
+  for (int k = 0; k <= 1500; ++k) {
+    rig.evaluate(armPose(k * 0.1 * kPi / 180), st);
+    EXPECT_LT(std::abs(st.length[0] - prevLen), 1e-3) << "at " << 0.1 * k << " degrees";
+    EXPECT_LE(st.length[0], rig.restLengths()[0] + 1e-9) << "at " << 0.1 * k << " degrees";
+    prevLen = st.length[0];
+  }
+}
+
 TEST(MuscleRig, BoneWrapFollowsTwistBothSides) {
   for (int side : {1, -1}) {
     const MuscleRig rig(arm(), {forearmWrap(side)});

@@ -104,6 +104,8 @@ def test_bad_arrays_raise_value_errors_naming_the_index(core, arm):
         skinner.deform(t)
     with pytest.raises(ValueError, match="out must be"):
         skinner.deform_into(np.tile(np.eye(4), (nb, 1, 1)), np.empty((5, 3), dtype=np.float32))
+    with pytest.raises(ValueError, match="out must be"):  # float64: no silent copy that stays unfilled
+        skinner.deform_into(np.tile(np.eye(4), (nb, 1, 1)), np.empty((skinner.num_vertices, 3)))
     with pytest.raises(ValueError, match="one quaternion"):
         core.pose_from_rotations(arm, np.tile([1.0, 0, 0, 0], (nb + 1, 1)))
     with pytest.raises(ValueError, match="quaternion of bone '.*' is not usable"):

@@ -31,6 +31,7 @@ struct MuscleRigOptions {
   // Turn the carried frames about the path by a linearly growing share of the twist between the frame
   // carried to the insertion and the frame the insertion bone carries there (like twist bones), so that
   // a forearm's roll reaches the skin on the muscle; false: frames anchored to the origin bone only.
+  // The twist is taken in (-180, 180] degrees: a roll of the insertion past 180 degrees wraps round.
   bool distributeTwist = true;
 };
 

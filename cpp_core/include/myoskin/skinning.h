@@ -38,7 +38,7 @@ struct HybridWeightOptions {
   double fullDistance = 0.35;
   double falloffDistance = 1.5;
   int smoothingIterations = 24;  // Laplacian smoothing passes (one edge ring each) of each muscle's weight
-  // Fraction of the muscle's rest action path (origin -> insertion) at each end over which its weight
+  // Fraction of the straight rest line origin -> insertion, from each end, over which the muscle's weight
   // fades to 0, so the skin over the tendons and attachments follows the bones (0 = no fade).
   double endTaper = 0.5;
 };

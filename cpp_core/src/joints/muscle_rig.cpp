@@ -146,7 +146,7 @@ double MuscleRig::Impl::endTwist(int m, const Pose& pose, const paths::ActionPat
   const Mat3 target = boneCarriedFrame(pose.matrices[mm.insertionBone], mm.endTangentLocal, mm.endFrameLocal,
                                        carried.col(1), false);
   const Vec3 a = carried.col(0), b = target.col(0);
-  return std::atan2(a.cross(b).dot(carried.col(1)), a.dot(b));
+  return std::atan2(a.cross(b).dot(carried.col(1)), a.dot(b));  // in (-pi, pi]: a roll past 180 degrees wraps
 }
 
 // ============================================================================
@@ -361,9 +361,12 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
   for (size_t b = 0; b < pose.matrices.size(); ++b)
     if (!finiteMatrix(pose.matrices[b]))
       throw InputError("MuscleRig::evaluate: pose matrix of bone '" + im.skeleton.bones[b].name + "' is not finite");
-  if (state.jointMatrices.size() != im.bind.size() || state.length.size() != im.models.size() ||
-      state.surfaces.size() != im.models.size())
-    throw InputError("MuscleRig::evaluate: state was not made by this rig's makeState()");
+  bool fits = state.jointMatrices.size() == im.bind.size() && state.length.size() == im.models.size() &&
+              state.stretch.size() == im.models.size() && state.wrapped.size() == im.models.size() &&
+              state.surfaces.size() == im.models.size();
+  for (size_t m = 0; fits && withSurfaces && m < im.models.size(); ++m)
+    fits = state.surfaces[m].rows() == im.models[m].surface.numVertices();
+  if (!fits) throw InputError("MuscleRig::evaluate: state was not made by this rig's makeState()");
 
   double sig[kMaxStations];
   Mat3 F[kMaxStations];

@@ -55,9 +55,11 @@ void straightPath(const Vec3& O, const Vec3& I, ActionPath& path);
 void jointWrapPath(const Vec3& O, const Vec3& I, const Vec3& J, double r, const Vec3& side, ActionPath& path);
 
 // Around the infinite cylinder through axisOrigin along unit `axis` (e1, e2 complete a right-handed
-// frame: e1 x axis = ... any orthonormal e1, e2 perpendicular to axis), radius r, going round with phi
-// increasing (side = +1, phi measured from e1 towards e2) or decreasing (side = -1). Straight when no wrap
-// is needed on that side. O or I inside the cylinder: the radius shrinks as for the sphere.
+// frame: e1 x e2 = axis), radius r, going round with phi increasing (side = +1, phi measured from e1
+// towards e2) or decreasing (side = -1). Straight when no wrap is needed on that side. The side is kept
+// as posed: when I's angle round the axis passes O's against the side, the path goes from straight to
+// almost a full turn (pick the side that matches the rest layout). O or I inside the cylinder: the radius
+// shrinks as for the sphere.
 void boneWrapPath(const Vec3& O, const Vec3& I, const Vec3& axisOrigin, const Vec3& e1, const Vec3& e2,
                   const Vec3& axis, double r, int side, ActionPath& path);
 

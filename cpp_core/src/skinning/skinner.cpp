@@ -4,6 +4,9 @@
 #include <tbb/partitioner.h>
 #include <tbb/task_arena.h>
 
+#include <mutex>
+#include <shared_mutex>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -30,6 +33,8 @@ struct Skinner::Impl {
   std::vector<uint16_t> joint;       // #V * slots; index numJoints = the identity (rest / padding)
   std::vector<float> weight;         // #V * slots, normalised per vertex
   std::unique_ptr<tbb::task_arena> arena;  // when options.threads > 0
+  mutable std::shared_mutex optionsMutex;  // deform (shared) against setOptions (exclusive): the arena
+                                           // must not be replaced while a deform runs in it
 
   void makeArena() {
     arena.reset();
@@ -169,6 +174,7 @@ void runRange(RangeKernel kernel, const Skinner::Impl& s, const PackedTransform*
 }
 
 void deformInto(const Skinner::Impl& s, const std::vector<Mat4>& transforms, float* out) {
+  std::shared_lock<std::shared_mutex> lock(s.optionsMutex);
   const std::vector<PackedTransform> T = packTransforms(transforms, s.numJoints);
   const RangeKernel kernel = chooseKernel();
   const int grain = std::max(1, s.options.grainSize);
@@ -275,6 +281,7 @@ int Skinner::restVertices() const { return impl_->restCount; }
 const SkinnerOptions& Skinner::options() const { return impl_->options; }
 
 void Skinner::setOptions(const SkinnerOptions& options) {
+  std::unique_lock<std::shared_mutex> lock(impl_->optionsMutex);
   impl_->options = options;
   impl_->makeArena();
 }
