@@ -132,11 +132,9 @@ def live_rig(arm_obj):
 
 def evaluated_pose(arm_obj, live, depsgraph=None):
     """#B by 4 by 4 skeleton pose (armature space) from the evaluated armature (constraints and IK applied)."""
+    from . import rig_io
     source = arm_obj.evaluated_get(depsgraph) if depsgraph is not None else arm_obj
-    pose_bones = source.pose.bones
-    flat = np.empty(len(pose_bones) * 16, dtype=np.float32)
-    pose_bones.foreach_get("matrix", flat)
-    return flat.reshape(-1, 4, 4).transpose(0, 2, 1)[live.skeleton_indices(pose_bones)].astype(np.float64)
+    return rig_io.pose_bone_matrices(source)[live.skeleton_indices(source.pose.bones)]
 
 
 def muscles_visible(arm_obj):
