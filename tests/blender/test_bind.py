@@ -174,7 +174,7 @@ def test_biceps_bulges_on_flexion():
 def test_frame_change_has_no_lag():
     arm, skin, state, _ = bound_arm()
     scene = bpy.context.scene
-    pb = key_elbow(arm, ((1, 0.0), (10, 110.0), (20, 30.0)))
+    key_elbow(arm, ((1, 0.0), (10, 110.0), (20, 30.0)))
     for frame in (10, 15, 20, 3):
         scene.frame_set(frame)
         blender = module("blender_io").evaluated_vertices(skin)
@@ -214,7 +214,7 @@ def ik_pose_matrix(m):
 def test_save_reload_gives_identical_coordinates():
     arm, skin, state, _ = bound_arm()
     scene = bpy.context.scene
-    pb = key_elbow(arm, ((1, 0.0), (10, 90.0)))
+    key_elbow(arm, ((1, 0.0), (10, 90.0)))
     scene.frame_set(7)
     before = module("blender_io").evaluated_vertices(skin)
     names = (arm.name, skin.name)
@@ -400,7 +400,7 @@ def test_baked_action_moves_the_muscle_surfaces_too():
     """Live update off (baked): the joints play from the Action and the muscle surfaces still follow."""
     arm, skin, state, _ = bound_arm()
     scene = bpy.context.scene
-    pb = key_elbow(arm, ((1, 0.0), (5, 120.0)))
+    key_elbow(arm, ((1, 0.0), (5, 120.0)))
     assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=5) == {'FINISHED'}
     assert not state.live
     live = module("live")
@@ -473,7 +473,7 @@ def test_export_gltf_with_helper_bones():
 
 def test_pc2_bake_equals_blender():
     arm, skin, state, _ = bound_arm()
-    pb = key_elbow(arm, ((1, 0.0), (3, 90.0)))
+    key_elbow(arm, ((1, 0.0), (3, 90.0)))
     path = os.path.join(TMP, "skin.pc2")
     assert bpy.ops.myoskin.bake_pc2(filepath=path, frame_start=1, frame_end=3) == {'FINISHED'}
     cache = core().read_pc2(path)
