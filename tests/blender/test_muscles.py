@@ -172,10 +172,11 @@ def test_extract_on_makehuman_glb():
     if sided:
         state.active_index = sided[0]
         src = state.muscles[sided[0]]
+        # read before mirroring: replacing an existing mirror twin shifts the list under `src`
+        src_bone, a = src.origin_bone, np.array(src.origin_locator.location)
         assert bpy.ops.myoskin.mirror_muscle() == {'FINISHED'}
         new = state.muscles[state.active_index]
-        assert new.origin_bone == bpy.utils.flip_name(src.origin_bone)
-        a = np.array(src.origin_locator.location)
+        assert new.origin_bone == bpy.utils.flip_name(src_bone)
         b = np.array(new.origin_locator.location)
         assert abs(a[0] + b[0]) < 1e-6 and np.abs(a[1:] - b[1:]).max() < 1e-6
 

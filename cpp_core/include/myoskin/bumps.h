@@ -47,6 +47,9 @@ struct BumpOptions {
   double supportTolerance = 0.3;  // the base is the candidate shape (lower envelope, or it or a circle refitted
                                   // to the skin within this share of the threshold of it) that most of the
                                   // section follows within that tolerance; 0 = the lower envelope only
+  int baseHarmonics = 0;  // > 0: the base is a radial Fourier series of this order (lower envelope, refitted
+                          // to its support) instead of a conic: for trunk sections, whose oval, bean or
+                          // rounded-rectangle outline no conic follows (ExtractionOptions::trunkHarmonics)
 };
 
 // A bump: a run of consecutive polygon vertices (the skin arc over a muscle belly).

@@ -82,12 +82,16 @@ struct ExtractionOptions {
                                                // body contours of thick sections are not); forced ones are kept.
                                                // Measured: synthetic muscles 0.106-0.33, MakeHuman neutral's
                                                // flattest contours 0.083-0.085 (0 = off)
-  double minRelativeTrunk = 0.15;              // the same floor for the trunk families (abdomen, neck: planes across
+  double minRelativeTrunk = 0.05;              // the same floor for the trunk families (abdomen, neck: planes across
                                                // the whole body): a thick trunk section's soft relief (belly, flanks)
                                                // stands out about as far, for its size, as a limb's belly. Measured
                                                // (plane spacing x 0.95-1.05): MakeHuman neutral's abdomen chains
                                                // 0.10-0.15 (0.151 at x 0.975, which passes), the muscular male's
                                                // 0.10-0.28 (0.19 at the default); the larger of the two applies
+  int trunkHarmonics = 4;                      // trunk sections (abdomen, chest, neck) measure bumps against a radial
+                                               // Fourier base of this order (BumpOptions::baseHarmonics): a trunk's
+                                               // bean or rounded-rectangle outline is not an oval, and against a conic
+                                               // its whole flanks stood out as half-trunk "muscles"; 0 = conic base
   double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones are kept)
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
 };

@@ -96,6 +96,10 @@ struct ProfileOptions {
   int samples = 0;  // points per profile after even resampling; 0 = derived (~2 mm apart, 48..400)
   double minRegionShare = 0.9;  // share of the loop's length that must lie on the plane's region
   double minPerimeter = 0.01;   // metres: smaller loops are skipped
+  double trunkClipShare = 0.4;  // a trunk (mirror-axis) plane whose loop runs into the arms or legs (less than
+                                // minRegionShare on its region, at least this much): the runs off the region
+                                // become straight chords (onSkin 0), so the chest between the shoulders is
+                                // sectioned too; 0 = such planes are skipped
   double mirrorTolerance = 0.002;  // metres: a mirror-axis section (CuttingPlane::mirrorAxis) whose mirrored
                                    // samples pair up within this is made exactly symmetric (each pair averaged),
                                    // so the bump stage sees both sides alike; 0 = never

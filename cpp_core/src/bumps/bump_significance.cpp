@@ -72,8 +72,9 @@ int conicFeatures(bool circle, const Vec2& p, double* f) {
   return 5;
 }
 
-// Base shape fits, the residual of the chosen base, smoothed. `supportTolerance` in metres.
-Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance) {
+// Base shape fits, the residual of the chosen base, smoothed. `supportTolerance` in metres; harmonics > 0
+// makes the base a radial Fourier series of that order (trunk sections) instead of a conic.
+Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance, int harmonics) {
   const int m = s.size();
   Profile pr;
   std::vector<double> r(m), span(m);
@@ -137,12 +138,45 @@ Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance)
     }
     return true;
   };
+  // Radial Fourier series r(theta) = c0 + sum_k (c_k cos k theta + s_k sin k theta), weighted least
+  // squares of the vertex radii: the smooth base of a trunk section (an oval, a bean, a rounded rectangle),
+  // which no conic follows; bellies narrower than a 1/(2 harmonics) share of the turn stand out of it.
+  std::vector<double> theta(m);
+  for (int i = 0; i < m; ++i) theta[i] = std::atan2(d[i].y(), d[i].x());
+  auto fitFourier = [&](const std::vector<double>& weight, std::vector<double>& base) {
+    const int nb = 1 + 2 * harmonics;
+    Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(nb, nb);
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(nb), f(nb);
+    auto features = [&](double t) {
+      f[0] = 1.0;
+      for (int k = 1; k <= harmonics; ++k) f[2 * k - 1] = std::cos(k * t), f[2 * k] = std::sin(k * t);
+    };
+    for (int i = 0; i < m; ++i) {
+      const double w = span[i] * weight[i];
+      if (w <= 0.0) continue;
+      features(theta[i]);
+      normal.selfadjointView<Eigen::Lower>().rankUpdate(f, w);
+      rhs.noalias() += w * r[i] * f;
+    }
+    if (!(normal(0, 0) > 0.0)) return false;
+    normal.diagonal().array() += 1e-12 * normal.diagonal().maxCoeff();
+    const Eigen::VectorXd c = normal.selfadjointView<Eigen::Lower>().ldlt().solve(rhs);
+    for (int i = 0; i < m; ++i) {
+      features(theta[i]);
+      base[i] = std::max(c.dot(f), 0.0);
+    }
+    return true;
+  };
+  auto fitModel = [&](bool circle, const std::vector<double>& weight, std::vector<double>& base, bool strict) {
+    return harmonics > 0 ? fitFourier(weight, base) : fit(circle, weight, base, strict);
+  };
+
   // Lower envelope: asymmetric least squares (points above the base weigh little).
   auto lowerEnvelope = [&](bool circle) {
     std::vector<double> base(r), weight(m, 1.0);
     std::vector<char> above(m, 0);
     for (int it = 0; it < kBaseIterations; ++it) {
-      if (!fit(circle, weight, base, false)) return r;
+      if (!fitModel(circle, weight, base, false)) return r;
       bool changed = false;
       for (int i = 0; i < m; ++i) {
         const char up = r[i] > base[i];
@@ -175,7 +209,7 @@ Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance)
     for (int it = 0; it < kSupportIterations; ++it) {
       int count = 0;
       for (int i = 0; i < m; ++i) count += (weight[i] = std::abs(r[i] - base[i]) <= tol ? 1.0 : 0.0) > 0.0;
-      if (count < 10 || !fit(circle, weight, next, true) || !(support(next) >= support(base))) break;
+      if (count < 10 || !fitModel(circle, weight, next, true) || !(support(next) >= support(base))) break;
       base.swap(next);
     }
     return base;
@@ -185,7 +219,12 @@ Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance)
   // oval through the four valleys between them; a circle refined to the skin between the bellies explains
   // more of the section and keeps them as bumps. The candidate that explains most of the section wins.
   std::vector<double> base = lowerEnvelope(false);
-  if (tol > 0.0) {
+  if (harmonics > 0) {
+    if (tol > 0.0) {
+      std::vector<double> cand = refine(base, false);
+      if (score(cand) > score(base) + kSupportMargin) base.swap(cand);
+    }
+  } else if (tol > 0.0) {
     double best = score(base);
     const std::vector<double> circle = refine(lowerEnvelope(true), true);
     for (std::vector<double> cand : {refine(base, false), circle, refine(circle, false)}) {
@@ -333,7 +372,7 @@ std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options,
     meanRadius = arc > 0.0 ? meanRadius / arc : 0.0;
   }
   const double threshold = std::max(options.minProtrusion, options.minRelativeProtrusion * meanRadius);
-  const Profile pr = measureProfile(s, options.supportTolerance * threshold);
+  const Profile pr = measureProfile(s, options.supportTolerance * threshold, std::max(0, options.baseHarmonics));
 
   // Significant candidates, strongest first.
   std::vector<Candidate> cands;

@@ -53,6 +53,25 @@ std::string sideName(const Bone& bone, const Vec3& p) {
   return az >= 0 ? "zpos" : "zneg";
 }
 
+// An exactly mirror-symmetric trunk section (x -> -x about its y axis): the bumps of its +x side and their
+// mirror images, so both sides get exactly mirrored ellipses (the triangulation of a symmetric polygon breaks
+// its Delaunay ties one way, which moved one side's ellipses by up to a millimetre).
+void mirrorSectionBumps(SectionWork& w) {
+  SectionWork out = w;
+  out.ellipses.clear(), out.significance.clear(), out.relative.clear(), out.forcedRegion.clear();
+  for (int pass = 0; pass < 2; ++pass)
+    for (size_t b = 0; b < w.ellipses.size(); ++b) {
+      Ellipse2 e = w.ellipses[b];
+      if (e.center.x() < 0 || (pass == 1 && e.center.x() == 0)) continue;  // on the axis: once
+      if (pass == 1) e.center.x() = -e.center.x(), e.angle = -e.angle;      // (cos, sin) -> (-cos, sin) up to sign
+      out.ellipses.push_back(e);
+      out.significance.push_back(w.significance[b]);
+      out.relative.push_back(w.relative[b]);
+      out.forcedRegion.push_back(w.forcedRegion[b]);
+    }
+  w = std::move(out);
+}
+
 }  // namespace
 
 ExtractionResult extractMuscles(const Character& character, const ExtractionOptions& options) {
@@ -114,7 +133,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     try {
       // Torso sections are split along their mirror axis, so a symmetric body's two sides triangulate alike.
       std::vector<std::array<int, 2>> split;
-      if (prof.plane.mirrorAxis && prof.onSkin.empty()) {
+      if (prof.plane.mirrorAxis) {
         const std::array<int, 2> axis = axisDiagonal(prof.polygon);
         if (axis[0] >= 0) split.push_back(axis);
       }
@@ -123,6 +142,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       // Hysteresis: bumps down to weakFraction of the threshold, significance still relative to the threshold.
       const double weak = std::clamp(options.weakFraction, 1e-3, 1.0);
       BumpOptions low = options.bumps;
+      if (prof.plane.mirrorAxis && options.trunkHarmonics > 0) low.baseHarmonics = options.trunkHarmonics;
       low.minProtrusion *= weak;
       low.minRelativeProtrusion *= weak;
       low.supportTolerance /= weak;  // the same tolerance in metres
@@ -145,6 +165,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       if (!forcedVerts.empty()) {
         // Weak bumps too, then for each forced region the dominant bump touching the region here.
         BumpOptions weak = options.bumps;
+        if (prof.plane.mirrorAxis && options.trunkHarmonics > 0) weak.baseHarmonics = options.trunkHarmonics;
         weak.minProtrusion = options.forcedMinProtrusion;
         weak.minRelativeProtrusion = 0.0;
         const std::vector<Bump> weakBumps = findBumps(prof.polygon, weak, &tri);
@@ -190,16 +211,18 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
         const Ellipse2 e = fitBumpEllipse(prof.polygon, bumps[b], tri);
         if (!std::isfinite(e.center.x()) || !std::isfinite(e.center.y()) || !(e.a > 0) || !(e.b > 0)) continue;
         if (forced[b] < 0) {
-          if (prof.onSkin.empty() && e.center.norm() < 0.25 * meanRadius) continue;
+          const bool clipped = !prof.onSkin.empty() && !prof.plane.mirrorAxis;  // a shoulder profile
+          if (!clipped && e.center.norm() < 0.25 * meanRadius) continue;
           // A clipped (shoulder) profile is not centred on its bone: there the belly must not enclose the bone.
           const Vec2 local = Eigen::Rotation2Dd(-e.angle) * (-e.center);
-          if (!prof.onSkin.empty() && std::pow(local.x() / e.a, 2) + std::pow(local.y() / e.b, 2) <= 1.0) continue;
+          if (clipped && std::pow(local.x() / e.a, 2) + std::pow(local.y() / e.b, 2) <= 1.0) continue;
         }
         w.ellipses.push_back(e);
         w.significance.push_back(bumps[b].significance);
         w.relative.push_back(meanRadius > 0 ? bumps[b].protrusion / meanRadius : 0.0);
         w.forcedRegion.push_back(forced[b]);
       }
+      if (prof.plane.mirrorAxis && prof.symmetric && options.vertexMask.empty() && forcedVerts.empty()) mirrorSectionBumps(w);
       w.ok = true;
     } catch (const std::exception& ex) {
       w.reason = std::string("triangulation/bumps failed: ") + ex.what();
@@ -255,7 +278,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       continue;
     }
     const bool trunk = c.family == "abdomen" || c.family == "neck";
-    const double floor = trunk ? std::max(options.minRelative, options.minRelativeTrunk) : options.minRelative;
+    const double floor = trunk ? options.minRelativeTrunk : options.minRelative;
     if (floor > 0) {  // the bumps' mean height relative to their sections' size (the faint tail links left out)
       double sum = 0.0;
       int count = 0;

@@ -202,6 +202,49 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
       onRegion = perimeter;
     }
   }
+  if (plane.mirrorAxis && skin.empty() && onRegion < o.minRegionShare * perimeter &&
+      onRegion >= o.trunkClipShare * perimeter && o.trunkClipShare > 0) {
+    // A trunk plane through the shoulders or hips cuts the arms' or legs' skin too: every run off the region
+    // becomes a straight chord, so the trunk's own skin (chest, back) is kept.
+    size_t start = 0;  // a point on the region, so runs do not wrap
+    while (start < n && !inRegion(start)) ++start;
+    std::vector<Vec2> pts;
+    std::vector<std::array<int, 2>> edges;
+    for (size_t k = 0; k <= n; ++k) {
+      const size_t i = (start + k) % n;
+      if (!inRegion(i)) continue;
+      if (!pts.empty() && k > 0 && !inRegion((i + n - 1) % n)) {
+        // The chord from the last kept point, sampled about 2 mm apart.
+        const Vec2 a = pts.back(), b = loop.points[i];
+        const int steps = std::max(2, static_cast<int>(std::ceil((b - a).norm() / 0.002)));
+        const std::array<int, 2> ea = edges.back(), eb = loop.edges[i];
+        for (int j = 1; j < steps; ++j) {
+          pts.push_back(a + (b - a) * (static_cast<double>(j) / steps));
+          edges.push_back(j * 2 < steps ? ea : eb);
+          skin.push_back(0);
+        }
+      }
+      if (k == n) break;
+      pts.push_back(loop.points[i]);
+      edges.push_back(loop.edges[i]);
+      skin.push_back(1);
+    }
+    double area = 0.0, arc = 0.0;
+    for (size_t i = 0; i < pts.size(); ++i) {
+      const Vec2 &p0 = pts[i], &p1 = pts[(i + 1) % pts.size()];
+      area += 0.5 * (p0.x() * p1.y() - p1.x() * p0.y());
+      arc += (p1 - p0).norm();
+    }
+    if (pts.size() < 3 || !(area > 0) || !enclosesOrigin(pts)) {
+      prof.perimeter = perimeter;
+      prof.skipReason = "the trunk's own skin does not bound a region around the spine on this plane (" +
+                        std::to_string(static_cast<int>(100 * onRegion / perimeter)) + " % of the loop on it)";
+      return prof;
+    }
+    loop.points = std::move(pts);
+    loop.edges = std::move(edges);
+    perimeter = onRegion = arc;
+  }
   prof.perimeter = perimeter;
   if (perimeter < o.minPerimeter) {
     prof.skipReason = "the loop around the bone is too small (" + std::to_string(perimeter) + " m)";
@@ -216,7 +259,8 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
   if (plane.mirrorAxis && o.samples <= 0) count += count % 2;  // the -Y crossing is then a sample too
   std::vector<int> source;
   prof.polygon = resample(loop.points, count, source);
-  if (plane.mirrorAxis && count % 2 == 0 && o.mirrorTolerance > 0 && skin.empty()) {
+  const bool trunkClipped = plane.mirrorAxis && !skin.empty();
+  if (plane.mirrorAxis && count % 2 == 0 && o.mirrorTolerance > 0) {
     // Sample k mirrors sample count - k (both start on the +Y axis and run the same arc length): when every pair
     // matches within the tolerance, average each pair so the two sides are exact mirror images.
     double worst = 0.0;
@@ -239,6 +283,11 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
     prof.onSkin.assign(count, 1);
     for (int k = 0; k < count; ++k)
       prof.onSkin[k] = skin[source[k]] && skin[(source[k] + 1) % skin.size()];
+    if (trunkClipped && prof.symmetric)  // mirrored samples: on the skin when both are
+      for (int k = 0; k <= count / 2; ++k) {
+        const int j = (count - k) % count;
+        prof.onSkin[k] = prof.onSkin[j] = prof.onSkin[k] && prof.onSkin[j];
+      }
   }
   if (mask) {
     bool any = false;
