@@ -86,10 +86,20 @@ void rebuildRootCurve(Muscle& m, const Vec3& origin, const Vec3& insertion, cons
 
 }  // namespace
 
-Muscle buildMuscleEnds(const std::vector<MuscleSection>& input, int bone, const Skeleton& skeleton,
-                       const EndOptions& options) {
+namespace {
+
+// A bone, its parent and its children.
+std::vector<int> boneAndNeighbours(const Skeleton& skeleton, int bone) {
+  std::vector<int> bones{bone};
+  if (skeleton.bones[bone].parent >= 0) bones.push_back(skeleton.bones[bone].parent);
+  for (int c : skeleton.children(bone)) bones.push_back(c);
+  return bones;
+}
+
+// The muscle with its ends on the nearest points of the candidate bones (originBones, insertionBones).
+Muscle buildEnds(const std::vector<MuscleSection>& input, const std::vector<int>& originBones,
+                 const std::vector<int>& insertionBones, const Skeleton& skeleton, const EndOptions& options) {
   if (input.empty()) throw InputError("buildMuscleEnds: a muscle needs at least one section");
-  if (bone < 0 || bone >= skeleton.numBones()) throw InputError("buildMuscleEnds: bad bone index");
   Muscle m;
   m.sections = input;
   const int n = static_cast<int>(m.sections.size());
@@ -112,23 +122,27 @@ Muscle buildMuscleEnds(const std::vector<MuscleSection>& input, int bone, const 
     s.axisA = detail::perpendicularTo(s.axisA, s.normal);
   }
 
-  // Candidate bones: the muscle's bone, its parent and its children.
-  std::vector<int> bones{bone};
-  if (skeleton.bones[bone].parent >= 0) bones.push_back(skeleton.bones[bone].parent);
-  for (int c : skeleton.children(bone)) bones.push_back(c);
-
   double meanB = 0;
   for (const MuscleSection& s : m.sections) meanB += s.b;
   meanB /= n;
   const double visible = detail::polylineLength(centers);
   const double maxLen = std::max(options.maxExtensionFraction * visible, 2.0 * meanB);
-  const EndPoint o = findExtremity(centers[0], -first, maxLen, bones, skeleton, options.tieTolerance);
-  const EndPoint e = findExtremity(centers[n - 1], last, maxLen, bones, skeleton, options.tieTolerance);
+  const EndPoint o = findExtremity(centers[0], -first, maxLen, originBones, skeleton, options.tieTolerance);
+  const EndPoint e = findExtremity(centers[n - 1], last, maxLen, insertionBones, skeleton, options.tieTolerance);
   m.origin = MuscleAttachment{skeleton.bones[o.bone].name, o.position};
   m.insertion = MuscleAttachment{skeleton.bones[e.bone].name, e.position};
 
   rebuildRootCurve(m, o.position, e.position, first, last, options);
   return m;
+}
+
+}  // namespace
+
+Muscle buildMuscleEnds(const std::vector<MuscleSection>& input, int bone, const Skeleton& skeleton,
+                       const EndOptions& options) {
+  if (bone < 0 || bone >= skeleton.numBones()) throw InputError("buildMuscleEnds: bad bone index");
+  const std::vector<int> bones = boneAndNeighbours(skeleton, bone);  // the muscle's bone, its parent, its children
+  return buildEnds(input, bones, bones, skeleton, options);
 }
 
 Muscle buildMuscleEnds(const MuscleChain& chain, const std::vector<SectionBumps>& sections, const Skeleton& skeleton,
@@ -146,7 +160,15 @@ Muscle buildMuscleEnds(const MuscleChain& chain, const std::vector<SectionBumps>
     ms.normal = p.normal.normalized();
     s.push_back(ms);
   }
-  return buildMuscleEnds(s, chain.bone, skeleton, options);
+  if (s.empty()) throw InputError("buildMuscleEnds: a muscle needs at least one section");
+  if (chain.bone < 0 || chain.bone >= skeleton.numBones()) throw InputError("buildMuscleEnds: bad bone index");
+  if (chain.family != "abdomen" && chain.family != "neck") return buildMuscleEnds(s, chain.bone, skeleton, options);
+  // A trunk chain climbs past several spine bones: each end attaches near its own end section's bone.
+  std::vector<int> originBones = boneAndNeighbours(skeleton, chain.bone),
+                   insertionBones = boneAndNeighbours(skeleton, chain.bone);
+  for (int b : boneAndNeighbours(skeleton, sections[chain.links.front().section].plane.bone)) originBones.push_back(b);
+  for (int b : boneAndNeighbours(skeleton, sections[chain.links.back().section].plane.bone)) insertionBones.push_back(b);
+  return buildEnds(s, originBones, insertionBones, skeleton, options);
 }
 
 
