@@ -116,8 +116,8 @@ void bindExtraction(py::module_& m) {
       "(0 = automatic); vertex_mask: #V booleans, extract only there; forced_regions: list of #V masks, one "
       "muscle forced per region; min_confidence: drop weaker muscles; max_per_region: keep the most confident "
       "per region (0 = all); min_relative: drop muscles whose bumps stand out less than this share of their "
-      "sections' mean radius on average; min_relative_trunk: the same for the abdomen and neck families (the larger "
-      "applies); mirror_limbs: average mirrored left/right limb profiles (exactly mirrored limbs); weak_fraction: hysteresis, bumps down to this share of the significance threshold "
+      "sections' mean radius on average; min_relative_trunk: the same for the abdomen and neck families (instead of "
+      "min_relative, against their Fourier base); mirror_limbs: average mirrored left/right limb profiles (exactly mirrored limbs); weak_fraction: hysteresis, bumps down to this share of the significance threshold "
       "extend muscles (1 = off). Returns (muscles, report) where report has per-stage counts, skipped sections "
       "with reasons and timings per stage (seconds).");
 

@@ -104,6 +104,48 @@ TEST(Bumps, SmoothSectionsGiveNone) {
   EXPECT_TRUE(findBumps(wobble).empty());
 }
 
+// A trunk-like outline: a rounded rectangle 1.6 : 1 (superellipse, exponent 2.5) of half-width 0.16 m with a
+// shallow front notch (the sternum), plus optional bellies of height h at the given angles.
+Points2 trunkSection(const std::vector<double>& angles, double h = 0.012, int n = 320) {
+  Points2 p(n, 2);
+  for (int i = 0; i < n; ++i) {
+    const double t = 2 * kPi * i / n, c = std::cos(t), sn = std::sin(t);
+    double r = 1.0 / std::pow(std::pow(std::abs(c) / 0.16, 2.5) + std::pow(std::abs(sn) / 0.1, 2.5), 0.4);
+    r -= 0.006 * std::exp(-std::pow(std::remainder(t + 0.5 * kPi, 2 * kPi) / 0.12, 2));  // notch at the front
+    for (double a : angles) {
+      const double d = std::remainder(t - a, 2 * kPi);
+      if (std::abs(d) < 0.3) r += h * std::pow(std::cos(0.5 * kPi * d / 0.3), 2);
+    }
+    p.row(i) << r * c, r * sn;
+  }
+  return p;
+}
+
+TEST(Bumps, TrunkOutlineAgainstAFourierBase) {
+  // Measured: against a conic the plain rounded rectangle gives bumps at its flanks (whole sides that no
+  // oval follows); the order-4 radial Fourier base follows it: no bump, and two 12 mm bellies either side of
+  // the notch are found where they are.
+  BumpOptions conic, fourier;
+  fourier.baseHarmonics = 4;
+  const Points2 plain = trunkSection({});
+  const std::vector<Bump> flanks = findBumps(plain, conic);
+  std::printf("rounded-rectangle trunk: %zu bumps against a conic, %zu against the Fourier base\n", flanks.size(),
+              findBumps(plain, fourier).size());
+  for (const Bump& b : findBumps(plain, fourier)) std::printf("  fourier bump at %.2f rad: %.4f m\n", apexAngle(plain, b), b.protrusion);
+  EXPECT_FALSE(flanks.empty());
+  EXPECT_TRUE(findBumps(plain, fourier).empty());
+  const std::vector<double> bellies = {-0.5 * kPi - 0.45, -0.5 * kPi + 0.45};
+  const Points2 chest = trunkSection(bellies);
+  const std::vector<Bump> found = findBumps(chest, fourier);
+  ASSERT_EQ(found.size(), 2u);
+  for (double a : bellies) {
+    double best = 1e9;
+    for (const Bump& b : found) best = std::min(best, std::abs(std::remainder(apexAngle(chest, b) - a, 2 * kPi)));
+    EXPECT_LT(best, 10 * kPi / 180) << "belly at " << a;
+  }
+  for (const Bump& b : found) EXPECT_GT(b.protrusion, 0.006);
+}
+
 TEST(Bumps, OneTwoThreeBulgesAtTheirAngles) {
   const std::vector<std::vector<double>> cases = {{1.0}, {0.5, 2.6}, {0.0, 2.1, 4.2}};
   for (const auto& angles : cases) {

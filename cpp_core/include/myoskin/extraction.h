@@ -82,12 +82,13 @@ struct ExtractionOptions {
                                                // body contours of thick sections are not); forced ones are kept.
                                                // Measured: synthetic muscles 0.106-0.33, MakeHuman neutral's
                                                // flattest contours 0.083-0.085 (0 = off)
-  double minRelativeTrunk = 0.05;              // the same floor for the trunk families (abdomen, neck: planes across
-                                               // the whole body): a thick trunk section's soft relief (belly, flanks)
-                                               // stands out about as far, for its size, as a limb's belly. Measured
-                                               // (plane spacing x 0.95-1.05): MakeHuman neutral's abdomen chains
-                                               // 0.10-0.15 (0.151 at x 0.975, which passes), the muscular male's
-                                               // 0.10-0.28 (0.19 at the default); the larger of the two applies
+  double minRelativeTrunk = 0.05;              // the floor for the trunk families instead (abdomen, neck: planes across
+                                               // the whole body), whose bumps are measured against the Fourier base
+                                               // (trunkHarmonics). Measured on MakeHuman: the muscular male's
+                                               // oblique/serratus chains stand out 0.06-0.07 on average, its chest
+                                               // chains 0.07; the neutral body's trunk chains are too short to count
+                                               // at any floor from 0.04 to 0.1 (before the Fourier base, against a
+                                               // conic, the floor was 0.15 and whole flanks passed it)
   int trunkHarmonics = 4;                      // trunk sections (abdomen, chest, neck) measure bumps against a radial
                                                // Fourier base of this order (BumpOptions::baseHarmonics): a trunk's
                                                // bean or rounded-rectangle outline is not an oval, and against a conic
