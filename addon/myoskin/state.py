@@ -147,6 +147,9 @@ class MyoskinSceneSettings(bpy.types.PropertyGroup):
                            soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
     min_confidence: FloatProperty(name="Min Confidence", description="Drop muscles less significant than this",
                                   default=0.5, min=0.0, max=1.0)
+    joint_wrap: FloatProperty(name="Joint Wrap", description="A muscle crossing a joint wraps round it on a "
+                              "sphere of this times its thickness, so it bends with the skeleton (0 = straight)",
+                              default=0.3, min=0.0, soft_max=1.0)
     limit: EnumProperty(name="Limit To", items=LIMITS, default='ALL')
     vertex_group: StringProperty(name="Vertex Group", description="Region for Limit To / Add Muscle")
     region_source: EnumProperty(name="Region", items=(

@@ -132,6 +132,9 @@ def test_extract_options_and_limits():
     # a stricter confidence gives no more muscles
     assert bpy.ops.myoskin.extract_muscles(min_confidence=0.95) == {'FINISHED'}
     assert len(state.muscles) <= everywhere
+    # joint wrap 0: every muscle's action line is straight, no wrap display
+    assert bpy.ops.myoskin.extract_muscles(joint_wrap=0.0) == {'FINISHED'}
+    assert all(item.wrap_type == 'none' and item.wrap_locator is None for item in state.muscles)
     # empty selection / missing group: clear errors
     skin.data.vertices.foreach_set("select", np.zeros(len(skin.data.vertices), dtype=bool))
     assert "No vertices selected" in operator_error(bpy.ops.myoskin.extract_muscles, limit='SELECTED')
@@ -143,7 +146,10 @@ def test_extract_options_and_limits():
     expected = set()
     for item in state.muscles:
         expected |= {item.surface.name, item.origin_locator.name, item.insertion_locator.name}
+        if item.wrap_type != 'none':  # muscles crossing a joint get a joint wrap, shown as a sphere
+            expected.add(item.wrap_locator.name)
     assert names == expected, names ^ expected
+    assert any(item.wrap_type == 'joint' for item in state.muscles)
 
 
 def test_extract_on_makehuman_glb():
@@ -357,7 +363,7 @@ def test_wrap_settings_and_display():
     stored = json.loads(state.muscles_text.as_string())["muscles"][0]
     assert stored["wrap"]["type"] == "bone" and stored["joints"] == 6
     item.wrap_type = 'none'
-    assert item.wrap_locator is None and not any(o.name.endswith(".wrap") for o in bpy.data.objects)
+    assert item.wrap_locator is None and not bpy.data.objects.get(item.name + ".wrap")
 
 
 # ------------------------------------------------------------------------------------------------

@@ -233,6 +233,54 @@ TEST(HybridSkinning, ElbowBendKeepsVolumeBetterAndTheBicepsBulges) {
   EXPECT_LT(state.stretch[a.biceps], 0.9);
 }
 
+TEST(HybridSkinning, MusclesCrossingTheShoulderBendRoundItWithTheDefaultJointWrap) {
+  // Muscles from the clavicle to the upper arm cross the shoulder joint. As straight lines they cut the corner
+  // when the arm swings, and the skin bound to them caves in (measured before: -1.5 to -9.8 % skin volume at
+  // +60 degrees, +0.6 to +3.9 % at -60, on seeds 0-3). The default joint wrap (EndOptions::jointWrapFraction)
+  // bends them round the joint. Measured: -1.1 to -2.0 % at +60, -1.8 to +1.3 % at -60 (plain LBS -0.04 to
+  // -0.15 % and -0.84 to -0.98 %).
+  for (unsigned seed : {0u, 1u, 2u, 3u}) {
+    SyntheticArmOptions so;
+    so.seed = seed;
+    const Character c = makeSyntheticArm(so).character;
+    const std::vector<Muscle> muscles = extractMuscles(c).muscles;
+    int wrapped = 0;
+    for (const Muscle& m : muscles) {
+      if (m.origin.bone == m.insertion.bone) {
+        EXPECT_EQ(m.wrap.type, WrapType::None) << m.name;
+        continue;
+      }
+      // A joint wrap on the one joint between the two bones, unless an end lies on the joint itself.
+      const Vec3 joint = c.skeleton.bones[c.skeleton.find(m.insertion.bone)].head;
+      if (std::min((m.origin.position - joint).norm(), (m.insertion.position - joint).norm()) < 0.00125) continue;
+      EXPECT_EQ(m.wrap.type, WrapType::Joint) << m.name;
+      EXPECT_EQ(m.wrap.bone, m.insertion.bone) << m.name;
+      EXPECT_GE(m.wrap.radius, 0.001) << m.name;
+      wrapped += m.origin.bone == "clavicle";
+    }
+    EXPECT_GE(wrapped, 1) << seed;
+    const MuscleRig rig(c.skeleton, muscles);
+    const SkinWeights w = computeHybridWeights(c.mesh, c.weights, rig);
+    const int nb = c.skeleton.numBones();
+    const Skinner hybrid(c.mesh.vertices, w, nb + rig.numJoints());
+    const double v0 = enclosedVolume(c.mesh.vertices, c.mesh.triangles);
+    MuscleRigState state = rig.makeState();
+    for (double degrees : {60.0, -60.0}) {
+      std::vector<Eigen::Quaterniond> q(nb, Eigen::Quaterniond::Identity());
+      q[c.skeleton.find("upper_arm")] = Eigen::AngleAxisd(degrees * kPi / 180.0, Vec3::UnitZ());
+      const Pose pose = poseFromLocalRotations(c.skeleton, q);
+      rig.evaluate(pose, state);
+      std::vector<Mat4> t;
+      skinningTransforms(c.skeleton, pose, rig, state, t);
+      Points ph;
+      hybrid.deform(t, ph);
+      const double change = (enclosedVolume(ph, c.mesh.triangles) - v0) / v0;
+      std::printf("seed %u, shoulder swing %+.0f deg: skin volume %+.2f %%\n", seed, degrees, 100 * change);
+      EXPECT_LT(std::abs(change), 0.03) << seed << " " << degrees;
+    }
+  }
+}
+
 TEST(HybridWeights, BadInput) {
   const ArmRig& a = armRig();
   const Character& c = a.character;

@@ -67,11 +67,18 @@ def test_makehuman_trunk_is_mirror_consistent(core):
     mirrored = centres * [-1.0, 1.0, 1.0]
     nearest = np.linalg.norm(centres[:, None, :] - mirrored[None, :, :], axis=2).min(axis=1)
     assert nearest.max() < 0.01, nearest  # every muscle has a mirror image within 1 cm
-    # The trunk floor only removes muscles; 0 leaves min_relative (9 %) for the trunk too.
+    # The trunk floor only removes muscles (0 = none on the trunk).
     loose, _ = core.extract_muscles(character, build_surfaces=False, min_relative_trunk=0.0)
     assert len(loose) >= len(muscles)
     with pytest.raises(ValueError, match="min_relative_trunk"):
         core.extract_muscles(character, min_relative_trunk=-1.0)
+    # Muscles whose ends lie on different bones of a chain wrap round the joint between them by default.
+    crossing = [m for m in muscles if m.origin_bone != m.insertion_bone and m.wrap_type == "joint"]
+    assert crossing and all(m.wrap_radius > 0 for m in crossing)
+    straight, _ = core.extract_muscles(character, build_surfaces=False, joint_wrap=0.0)
+    assert all(m.wrap_type == "none" for m in straight)
+    with pytest.raises(ValueError, match="joint_wrap"):
+        core.extract_muscles(character, joint_wrap=-0.1)
     # Opt-in: mirrored limb profiles averaged too, so every muscle's mirror image is exact (to rounding).
     twins, twin_report = core.extract_muscles(character, build_surfaces=False, mirror_limbs=True)
     assert twin_report["mirrored"] > twin_report["split"]

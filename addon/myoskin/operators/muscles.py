@@ -69,6 +69,9 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
                                   "(-1 = preferences)", default=-1.0, min=-1.0, max=1.0)
     min_sections: IntProperty(name="Min Sections", description="Sections a muscle needs (-1 = preferences)",
                               default=-1, min=-1, soft_max=20)
+    joint_wrap: FloatProperty(name="Joint Wrap", description="A muscle crossing a joint wraps round it on a "
+                              "sphere of this times its thickness, so it bends with the skeleton (0 = straight)",
+                              default=0.3, min=0.0, soft_max=1.0)
     limit: EnumProperty(name="Limit To", items=LIMITS, default='ALL')
     vertex_group: StringProperty(name="Vertex Group", description="With Limit To = Vertex Group")
 
@@ -100,7 +103,7 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
                 mask = blender_io.welded_mask(source, weld_map, character.num_vertices)
             muscles, report = core_loader.core().extract_muscles(
                 character, spacing=spacing, vertex_mask=mask, min_confidence=min_confidence,
-                min_sections=min_sections)
+                min_sections=min_sections, joint_wrap=self.joint_wrap)
             wm.progress_update(2)
             for m in muscles:
                 m.joints = prefs.joints_per_muscle

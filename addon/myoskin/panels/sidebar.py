@@ -69,6 +69,7 @@ class MYOSKIN_PT_extract(_WorkflowStep, bpy.types.Panel):
         col = layout.column()
         col.prop(ui, "spacing")
         col.prop(ui, "min_confidence")
+        col.prop(ui, "joint_wrap")
         col.prop(ui, "limit")
         if ui.limit == 'GROUP' and skin is not None:
             col.prop_search(ui, "vertex_group", skin, "vertex_groups")
@@ -77,6 +78,7 @@ class MYOSKIN_PT_extract(_WorkflowStep, bpy.types.Panel):
         op = row.operator("myoskin.extract_muscles", icon='MOD_SKIN')
         op.spacing, op.min_confidence, op.limit, op.vertex_group = (ui.spacing, ui.min_confidence, ui.limit,
                                                                     ui.vertex_group)
+        op.joint_wrap = ui.joint_wrap
         if state.bound:
             layout.label(text="Bound: unbind to extract again", icon='LOCKED')
         layout.label(text=f"{len(state.muscles)} muscles on {arm.name}", icon='OUTLINER_OB_MESH')

@@ -41,6 +41,13 @@ struct EndOptions {
   double maxExtensionFraction = 0.35;
   double tieTolerance = 0.004;
   int samplesPerEnd = 6;        // Hermite samples added to the root curve on each side
+  // A muscle whose origin and insertion lie on different bones of one chain crosses a joint: it gets a joint
+  // wrap there (the sphere on the crossed bone's head farthest from the straight line; radius this times the
+  // muscle's mean semi-axis b, at most 0.8 of either end's distance from the joint), so its action line bends
+  // round the joint with the skeleton instead of cutting the corner. Measured on the synthetic arm (seeds 0-3,
+  // shoulder swing 60 degrees): skin volume -1.1 to -2.0 % instead of -1.5 to -9.8 % (plain LBS -0.1 %);
+  // 0 = straight lines (the paper's default).
+  double jointWrapFraction = 0.3;
 };
 
 struct SurfaceOptions {

@@ -211,7 +211,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
         const Ellipse2 e = fitBumpEllipse(prof.polygon, bumps[b], tri);
         if (!std::isfinite(e.center.x()) || !std::isfinite(e.center.y()) || !(e.a > 0) || !(e.b > 0)) continue;
         if (forced[b] < 0) {
-          const bool clipped = prof.plane.clipRadius > 0;  // a shoulder profile
+          const bool clipped = !prof.onSkin.empty() && prof.plane.clipRadius > 0;  // a clipped shoulder profile
           if (!clipped && e.center.norm() < 0.25 * meanRadius) continue;
           // A clipped (shoulder) profile is not centred on its bone: there the belly must not enclose the bone.
           const Vec2 local = Eigen::Rotation2Dd(-e.angle) * (-e.center);

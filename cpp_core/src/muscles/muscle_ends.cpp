@@ -88,6 +88,39 @@ void rebuildRootCurve(Muscle& m, const Vec3& origin, const Vec3& insertion, cons
 
 namespace {
 
+// The joint wrap of a muscle from `o` to `e` when they lie on different bones of one chain: a sphere of radius
+// `radius` (at most 0.8 of either end's distance) on the crossed joint farthest from the straight line O-I.
+// No wrap (type None) when the bones are the same or unrelated, or the sphere would be under a millimetre.
+MuscleWrap defaultJointWrap(const EndPoint& o, const EndPoint& e, double radius, const Skeleton& skeleton) {
+  MuscleWrap wrap;
+  auto crossed = [&](int ancestor, int descendant) {  // heads of the bones below `ancestor` down to `descendant`
+    std::vector<int> joints;
+    for (int b = descendant; b >= 0; b = skeleton.bones[b].parent) {
+      if (b == ancestor) return joints;
+      joints.push_back(b);
+    }
+    return std::vector<int>{};
+  };
+  if (o.bone == e.bone) return wrap;
+  std::vector<int> joints = crossed(o.bone, e.bone);
+  if (joints.empty()) joints = crossed(e.bone, o.bone);
+  int best = -1;
+  double bestDistance = -1.0;
+  for (int j : joints) {
+    const Vec3& J = skeleton.bones[j].head;
+    const double d = (J - detail::closestOnSegment(J, o.position, e.position)).norm();
+    if (d > bestDistance + 1e-9) best = j, bestDistance = d;
+  }
+  if (best < 0) return wrap;
+  const Vec3& J = skeleton.bones[best].head;
+  const double r = std::min(radius, 0.8 * std::min((o.position - J).norm(), (e.position - J).norm()));
+  if (!(r >= 0.001)) return wrap;
+  wrap.type = WrapType::Joint;
+  wrap.bone = skeleton.bones[best].name;
+  wrap.radius = r;
+  return wrap;
+}
+
 // A bone, its parent and its children.
 std::vector<int> boneAndNeighbours(const Skeleton& skeleton, int bone) {
   std::vector<int> bones{bone};
@@ -131,6 +164,7 @@ Muscle buildEnds(const std::vector<MuscleSection>& input, const std::vector<int>
   const EndPoint e = findExtremity(centers[n - 1], last, maxLen, insertionBones, skeleton, options.tieTolerance);
   m.origin = MuscleAttachment{skeleton.bones[o.bone].name, o.position};
   m.insertion = MuscleAttachment{skeleton.bones[e.bone].name, e.position};
+  if (options.jointWrapFraction > 0) m.wrap = defaultJointWrap(o, e, meanB * options.jointWrapFraction, skeleton);
 
   rebuildRootCurve(m, o.position, e.position, first, last, options);
   return m;
