@@ -556,30 +556,57 @@ TEST(MuscleRig, DegeneratePosesStayFinite) {
 
 TEST(MuscleRig, ForearmRollIsDistributedAlongMusclesThatReachIt) {
   // A muscle from the upper arm to the forearm: twisting the forearm 60 degrees about its axis turns the
-  // joint frames about the path by a share growing from ~0 at the origin to ~60 at the insertion.
+  // joint frames about the path by a share growing from ~0 at the origin to ~60 at the insertion (linear in
+  // arc length), or following the bones: little along the upper arm, most along the forearm.
   const Muscle mu = biceps();
-  for (bool distribute : {true, false}) {
+  enum class Mode { Linear, Bones, Off };
+  for (Mode mode : {Mode::Linear, Mode::Bones, Mode::Off}) {
     MuscleRigOptions o;
-    o.distributeTwist = distribute;
+    o.distributeTwist = mode != Mode::Off;
+    o.twistFollowsBones = mode == Mode::Bones;
     const MuscleRig rig(arm(), {mu}, o);
     MuscleRigState st = rig.makeState();
     rig.evaluate(armPose(0.0, 60 * kPi / 180), st, true);
+    const Bone& upper = arm().bones[arm().find("upper_arm")];
+    const Bone& fore = arm().bones[arm().find("forearm")];
     double prev = -1.0;
+    int alongFore = 0, alongUpper = 0;
     for (int k = 0; k < rig.numJoints(); ++k) {
       const Mat3 B = rig.bindMatrices()[k].topLeftCorner<3, 3>();
       const Mat3 R = st.jointMatrices[k].topLeftCorner<3, 3>().colwise().normalized();
       const Vec3 t = R.col(1);
       const double roll = std::atan2(B.col(0).cross(R.col(0)).dot(t), B.col(0).dot(R.col(0))) * 180 / kPi;
-      if (distribute) {
-        EXPECT_GT(roll, prev) << "joint " << k;
-        EXPECT_GT(roll, 0.0);
-        EXPECT_LT(roll, 60.0);
-      } else {
+      if (mode == Mode::Off) {
         EXPECT_NEAR(roll, 0.0, 0.1) << "joint " << k;  // only the insertion's slight move turns the path
+        continue;
+      }
+      EXPECT_GT(roll, prev - 1e-9) << "joint " << k;
+      EXPECT_GT(roll, 0.0);
+      EXPECT_LT(roll, 60.0);
+      if (mode == Mode::Bones) {  // the share is the rest position's: d_o^2 / (d_o^2 + d_i^2)
+        const Vec3 p = rig.bindMatrices()[k].topRightCorner<3, 1>();
+        auto d2 = [&](const Bone& b) {
+          const Vec3 ab = b.tail - b.head;
+          const double u = std::clamp((p - b.head).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+          return (p - b.head - u * ab).squaredNorm();
+        };
+        if (d2(upper) > 4 * d2(fore)) {
+          ++alongFore;
+          EXPECT_GT(roll, 0.7 * 60.0) << "joint " << k << " lies along the forearm";
+        }
+        if (d2(fore) > 4 * d2(upper)) {
+          ++alongUpper;
+          EXPECT_LT(roll, 0.3 * 60.0) << "joint " << k << " lies along the upper arm";
+        }
       }
       prev = roll;
     }
-    if (distribute) EXPECT_GT(prev, 40.0) << "the last joint, near the insertion, turns with the forearm";
+    if (mode == Mode::Linear) EXPECT_GT(prev, 40.0) << "the last joint, near the insertion, turns with the forearm";
+    if (mode == Mode::Bones) {
+      EXPECT_GT(prev, 25.0) << "the last joint, past the elbow, turns with the forearm";
+      std::printf("bone-following twist: %d joints along the upper arm, %d along the forearm\n", alongUpper, alongFore);
+      EXPECT_GE(alongUpper, 1);
+    }
     EXPECT_TRUE(st.surfaces[0].allFinite());
   }
 }

@@ -233,7 +233,7 @@ TEST(HybridSkinning, ElbowBendKeepsVolumeBetterAndTheBicepsBulges) {
   EXPECT_LT(state.stretch[a.biceps], 0.9);
 }
 
-TEST(HybridSkinning, MusclesCrossingTheShoulderBendRoundItWithTheDefaultJointWrap) {
+TEST(HybridSkinning, ShoulderSwingAndForearmTwistKeepTheSkinVolume) {
   // Muscles from the clavicle to the upper arm cross the shoulder joint. As straight lines they cut the corner
   // when the arm swings, and the skin bound to them caves in (measured before: -1.5 to -9.8 % skin volume at
   // +60 degrees, +0.6 to +3.9 % at -60, on seeds 0-3). The default joint wrap (EndOptions::jointWrapFraction)
@@ -265,9 +265,11 @@ TEST(HybridSkinning, MusclesCrossingTheShoulderBendRoundItWithTheDefaultJointWra
     const Skinner hybrid(c.mesh.vertices, w, nb + rig.numJoints());
     const double v0 = enclosedVolume(c.mesh.vertices, c.mesh.triangles);
     MuscleRigState state = rig.makeState();
-    for (double degrees : {60.0, -60.0}) {
+    for (double degrees : {60.0, -60.0, 90.0}) {
       std::vector<Eigen::Quaterniond> q(nb, Eigen::Quaterniond::Identity());
-      q[c.skeleton.find("upper_arm")] = Eigen::AngleAxisd(degrees * kPi / 180.0, Vec3::UnitZ());
+      const bool twist = degrees == 90.0;  // the forearm's roll about its own axis
+      q[c.skeleton.find(twist ? "forearm" : "upper_arm")] =
+          Eigen::AngleAxisd(degrees * kPi / 180.0, twist ? Vec3::UnitY() : Vec3::UnitZ());
       const Pose pose = poseFromLocalRotations(c.skeleton, q);
       rig.evaluate(pose, state);
       std::vector<Mat4> t;
@@ -275,8 +277,12 @@ TEST(HybridSkinning, MusclesCrossingTheShoulderBendRoundItWithTheDefaultJointWra
       Points ph;
       hybrid.deform(t, ph);
       const double change = (enclosedVolume(ph, c.mesh.triangles) - v0) / v0;
-      std::printf("seed %u, shoulder swing %+.0f deg: skin volume %+.2f %%\n", seed, degrees, 100 * change);
-      EXPECT_LT(std::abs(change), 0.03) << seed << " " << degrees;
+      std::printf("seed %u, %s %+.0f deg: skin volume %+.2f %%\n", seed, twist ? "forearm twist" : "shoulder swing",
+                  degrees, 100 * change);
+      // Forearm twist: the muscles share the roll as the bones do (MuscleRigOptions::twistFollowsBones), so the
+      // skin the forearm moves rigidly is not blended against half-turned muscle joints. Measured -1.04 to
+      // -1.36 % (plain LBS -0.90 to -0.96 %; with a share linear in arc length -1.6 to -3.2 %).
+      EXPECT_LT(std::abs(change), twist ? 0.015 : 0.03) << seed << " " << degrees;
     }
   }
 }

@@ -33,6 +33,11 @@ struct MuscleRigOptions {
   // a forearm's roll reaches the skin on the muscle; false: frames anchored to the origin bone only.
   // The twist is taken in (-180, 180] degrees: a roll of the insertion past 180 degrees wraps round.
   bool distributeTwist = true;
+  // How the twist is shared along the path: true (default) = as the skeleton shares it, by where each station
+  // lies at rest (share d_o^2 / (d_o^2 + d_i^2) of its distances to the origin and insertion bones: none along
+  // the origin bone, all along the insertion bone, a ramp across the joint), so skin the skeleton moves rigidly
+  // with the insertion bone is not blended against a half-twisted muscle joint; false = linear in arc length.
+  bool twistFollowsBones = true;
 };
 
 // ============================================================================

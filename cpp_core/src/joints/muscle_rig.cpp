@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "joints/bulge.h"
+#include "muscles/muscle_util.h"
 #include "myoskin/deformation.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
@@ -69,6 +70,7 @@ struct MuscleModel {
   Vec3 endTangentLocal;              // rest end tangent in the insertion bone's frame
   Mat3 endFrameLocal;                // rest end frame in the insertion bone's frame
   int stations = 0, jointStride = 0, joints = 0;  // joint k sits on station (2k + 1) * jointStride
+  std::vector<double> twistShare;    // #stations: share of the end twist each station turns by
   std::vector<Vec3> jointOffset;     // #joints rest root-curve point in its station's frame
   joints::BulgeProfile bulge;
   // Surface: each vertex blends stations j and j + 1 with weights (1 - alpha, alpha); local
@@ -96,6 +98,7 @@ struct MuscleRig::Impl {
   // insertion bone carries there; distributed linearly along the path.
   double endTwist(int m, const Pose& pose, const paths::ActionPath& path, const Mat3& F0) const;
   bool distributeTwist = true;
+  bool twistFollowsBones = true;
 };
 
 void MuscleRig::Impl::posedPath(int m, const Pose& pose, paths::ActionPath& path) const {
@@ -158,6 +161,7 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
   validateMuscles(muscles);
   auto impl = std::make_shared<Impl>();
   impl->distributeTwist = options.distributeTwist;
+  impl->twistFollowsBones = options.twistFollowsBones;
   impl->skeleton = skeleton;
   impl->muscles = muscles;
   const Pose rest = restPose(skeleton);
@@ -244,6 +248,17 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
     std::vector<Mat3> F(S);
     std::vector<Vec3> P(S);
     paths::framesAt(path, F0, sig.data(), S, F.data(), P.data());
+
+    // Twist share per station: linear in arc length, or by the rest distances to the two bones.
+    mr.twistShare.resize(S);
+    const Bone &ob = skeleton.bones[mr.originBone], &ib = skeleton.bones[mr.insertionBone];
+    for (int j = 0; j < S; ++j) {
+      mr.twistShare[j] = static_cast<double>(j) / (S - 1);
+      if (!impl->twistFollowsBones || mr.originBone == mr.insertionBone) continue;
+      const double dO = (P[j] - detail::closestOnSegment(P[j], ob.head, ob.tail)).squaredNorm();
+      const double dI = (P[j] - detail::closestOnSegment(P[j], ib.head, ib.tail)).squaredNorm();
+      mr.twistShare[j] = dO + dI > 1e-30 ? dO / (dO + dI) : 0.5;
+    }
 
     // Path parameter (fractional station index) and the two stations' local coordinates of a point.
     auto project = [&](const Vec3& v, int& j, double& alpha) {
@@ -378,10 +393,12 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     const Mat3 F0 = im.startFrame(m, pose, path);
     const double twist = im.endTwist(m, pose, path, F0);
     // Carried frames turned about their tangent by the share of the end twist at their arc length.
-    auto twisted = [&](int n) {
+    auto twisted = [&](int n, int stride) {  // frames of stations 0, stride, 2 stride, ... (joints: odd ones)
       if (twist == 0.0) return;
-      for (int i = 0; i < n; ++i)
-        F[i] = Eigen::AngleAxisd(twist * sig[i] / path.length, F[i].col(1)).toRotationMatrix() * F[i];
+      for (int i = 0; i < n; ++i) {
+        const int j = stride > 0 ? i * stride : (2 * i + 1) * mm.jointStride;
+        F[i] = Eigen::AngleAxisd(twist * mm.twistShare[j], F[i].col(1)).toRotationMatrix() * F[i];
+      }
     };
     const double lambda = std::clamp(path.length / mm.restLength, kMinStretch, kMaxStretch);
     const double mu = joints::bulgeMu(mm.bulge, lambda);
@@ -393,7 +410,7 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     // Joints: frames at their stations only.
     for (int k = 0; k < mm.joints; ++k) sig[k] = path.length * ((2 * k + 1) * mm.jointStride) / (S - 1);
     paths::framesAt(path, F0, sig, mm.joints, F, P);
-    twisted(mm.joints);
+    twisted(mm.joints, 0);
     for (int k = 0; k < mm.joints; ++k) {
       const int j = (2 * k + 1) * mm.jointStride;
       const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);
@@ -411,7 +428,7 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     // Surface: every station, then each vertex blends its two stations.
     for (int j = 0; j < S; ++j) sig[j] = path.length * j / (S - 1);
     paths::framesAt(path, F0, sig, S, F, P);
-    twisted(S);
+    twisted(S, 1);
     for (int j = 0; j < S; ++j) {
       const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);
       F[j].col(0) *= s;
