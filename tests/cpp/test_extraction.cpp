@@ -200,6 +200,36 @@ TEST(Linking, FragmentsOfOneBellyMerge) {
   EXPECT_EQ(merged[0].realSections, 10);
 }
 
+TEST(Linking, FaintLinksStayOnlyNearTheChainsPeak) {
+  // Two muscles with the same faint tails (significance 0.7 in the first and last two sections): a faint one
+  // (peak 1.5) keeps them, a strong one (peak 3) does not; transition-free, no gaps.
+  std::vector<SectionBumps> s;
+  for (int i = 0; i < 10; ++i) {
+    SectionBumps p = plane(i);
+    const bool tail = i < 2 || i >= 8;
+    addBump(p, 90, 0.04, 0.02, 0.01, tail ? 0.7 : 3.0);
+    addBump(p, -90, 0.04, 0.02, 0.01, tail ? 0.7 : 1.5);
+    s.push_back(p);
+  }
+  LinkOptions o;
+  EXPECT_EQ(linkBumps(s, o).size(), 2u);
+  for (const MuscleChain& c : linkBumps(s, o)) EXPECT_EQ(c.realSections, 10);
+  o.faintBelow = 0.8;
+  o.faintRelative = 0.36;
+  const auto chains = linkBumps(s, o);
+  ASSERT_EQ(chains.size(), 2u);
+  for (const MuscleChain& c : chains) {
+    const bool strong = c.links.front().ellipse.center.y() > 0;
+    EXPECT_EQ(c.realSections, strong ? 6 : 10);
+    EXPECT_EQ(c.strongSections, 6);
+    EXPECT_EQ(s[c.links.front().section].plane.order, strong ? 2 : 0);
+    EXPECT_EQ(s[c.links.back().section].plane.order, strong ? 7 : 9);
+  }
+  // Forced bumps always stay.
+  for (SectionBumps& p : s) p.forced.assign(p.ellipses.size(), 1);
+  for (const MuscleChain& c : linkBumps(s, o)) EXPECT_EQ(c.realSections, 10);
+}
+
 TEST(Linking, ConfidenceGrowsWithSectionsAndSignificance) {
   auto chainOf = [](int n, double sig) {
     std::vector<SectionBumps> s;
@@ -408,12 +438,15 @@ TEST(Measured, SyntheticArmRecallPrecision) {
     if (seed == 0) printMuscles(r.muscles);
     for (size_t t = 0; t < arm.muscles.size(); ++t)
       if (acc.matchOfTrue[t] < 0) std::printf("  missed true muscle %s (%s)\n", arm.muscles[t].name.c_str(), arm.muscles[t].bone.c_str());
-    // Issue 3's target: recall and precision >= 0.9. Measured: all 6 matched and nothing else on seeds 0, 1
-    // and 3; on seed 2 the brachialis (mostly buried between biceps and elbow) shows in only 5 sections: it
-    // is found but too short to cover 60 % of its length (recall and precision 0.83 there).
+    // Issue 3's target: recall and precision >= 0.9 on every seed. Measured: all 6 matched and nothing else on
+    // every seed. Seed 2's brachialis (mostly buried between biceps and elbow) stands out in only 5 sections;
+    // its faint tails (ExtractionOptions::faintRelative) extend it to 7, 61 % of its length (without them it
+    // covers 46 %: recall and precision 0.83).
     std::printf("  (issue target: recall >= 0.9, precision >= 0.9)\n");
-    EXPECT_GE(acc.matched, seed == 2 ? 5 : 6) << "seed " << seed;
-    EXPECT_LE(acc.foundMuscles - acc.matched, seed == 2 ? 1 : 0) << "seed " << seed;
+    EXPECT_GE(acc.recall, 0.9) << "seed " << seed;
+    EXPECT_GE(acc.precision, 0.9) << "seed " << seed;
+    EXPECT_EQ(acc.matched, 6) << "seed " << seed;
+    EXPECT_EQ(acc.foundMuscles, 6) << "seed " << seed;
     EXPECT_LT(acc.meanCenterError, 0.35) << "seed " << seed;
     recallSum += acc.recall;
     precisionSum += acc.precision;
@@ -424,7 +457,7 @@ TEST(Measured, SyntheticArmRecallPrecision) {
     }
     EXPECT_NO_THROW(validateMuscles(r.muscles));
   }
-  std::printf("mean over seeds 0-3: recall %.3f precision %.3f (target 0.9 / 0.9; measured 0.958 / 0.958)\n",
+  std::printf("mean over seeds 0-3: recall %.3f precision %.3f (target 0.9 / 0.9; measured 1.0 / 1.0)\n",
               recallSum / 4, precisionSum / 4);
   EXPECT_GE(recallSum / 4, 0.9);
   EXPECT_GE(precisionSum / 4, 0.9);

@@ -32,6 +32,9 @@ struct LinkOptions {
   double mergeFactor = 0.5;     // fragments of one belly (chains of a family whose centres come within this
                                 // times their larger mean semi-axis a at the same or a neighbouring plane)
                                 // are merged into one chain
+  double faintBelow = 0.0;      // faint links: real links whose significance is below faintBelow are kept only
+  double faintRelative = 0.0;   // where they reach faintRelative x their chain's peak significance (after fragments
+                                // merged; a transition section next to a dropped link goes too); 0 = keep every link
 };
 
 struct EndOptions {
@@ -67,13 +70,25 @@ struct ExtractionOptions {
                                                // threshold are linked too, so a muscle whose bump fades
                                                // towards its tendons (or under a neighbour) is followed further;
                                                // a muscle needs link.minSections significant sections.
-                                               // 1 = no hysteresis. Measured: 0.8 follows the synthetic seed 2's
+                                               // 1 = none (the faint links below are separate). Measured (faintRelative 0): 0.8 follows the synthetic seed 2's
                                                // brachialis over 5 sections (46 % of its length: a miss), 0.5 over 7
                                                // (61 %: recall and precision 1.0 on seeds 0-3; with
                                                // profiles.mirrorLimbs MakeHuman's calves stay mirrored), but 0.5 also
                                                // lengthens the synthetic arm's biceps towards the elbow: the hybrid
                                                // skinning's elbow region at 35 degrees grows +6.5 % (0.6: +4.4 %)
                                                // where LBS loses 3.6 % (0.8: +2.9 %), failing test_hybrid_skinning
+  double faintFraction = 0.5;                  // a second, conditional hysteresis: bumps from this share of the threshold
+  double faintRelative = 0.36;                 // up to weakFraction are linked too, but a chain keeps them only where they
+                                               // reach faintRelative of its own peak significance: a faint muscle is followed
+                                               // further as it fades (under a neighbour, towards its tendons), a strong one is
+                                               // not stretched over its tendons' soft relief (faintRelative 0 = off; linking
+                                               // options LinkOptions::faintBelow/faintRelative). Measured on the synthetic arm:
+                                               // seed 2's brachialis (peak 1.52) keeps its tails at 0.73 and 0.61 (7 sections,
+                                               // 61 % covered: recall and precision 1.0 on seeds 0-3); the biceps' (peak 2.9)
+                                               // at 0.62-0.70 stay off; seed 1's forearm flexors (peak 1.79) keep a 0.59 elbow
+                                               // tail below faintRelative 0.335, and then the hybrid skinning's whole-arm volume
+                                               // at 140 degrees grows more (+0.84 %) than LBS loses (-0.82 %). Works for
+                                               // faintRelative 0.335-0.395.
   double magnitudeFraction = 0.8;              // the magnitude floors (minRelative, minRelativeTrunk) average only
                                                // the bumps of at least this share of the threshold, so faint tail
                                                // links extend a muscle without diluting its magnitude

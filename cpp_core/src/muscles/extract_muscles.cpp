@@ -120,8 +120,10 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       }
       const SectionTriangulation tri = triangulateSection(prof.polygon, split);
       w.split = !tri.diagonals.empty();
-      // Hysteresis: bumps down to weakFraction of the threshold, significance still relative to the threshold.
-      const double weak = std::clamp(options.weakFraction, 1e-3, 1.0);
+      // Hysteresis: bumps down to weakFraction of the threshold (faintFraction for the conditional faint links),
+      // significance still relative to the threshold.
+      const double weak =
+          std::clamp(std::min(options.weakFraction, options.faintRelative > 0 ? options.faintFraction : 1.0), 1e-3, 1.0);
       BumpOptions low = options.bumps;
       low.minProtrusion *= weak;
       low.minRelativeProtrusion *= weak;
@@ -230,7 +232,12 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
 
   // Stage 5: linking.
   t0 = Clock::now();
-  std::vector<MuscleChain> chains = linkBumps(sections, options.link, &rep.branches);
+  LinkOptions linkOptions = options.link;  // faint links (below weakFraction) kept only near their chain's peak
+  if (options.faintRelative > 0 && options.faintFraction < options.weakFraction) {
+    linkOptions.faintBelow = std::clamp(options.weakFraction, 1e-3, 1.0);
+    linkOptions.faintRelative = options.faintRelative;
+  }
+  std::vector<MuscleChain> chains = linkBumps(sections, linkOptions, &rep.branches);
   rep.chains = static_cast<int>(chains.size());
   // Each forced region keeps one chain: the one with the most links from that region.
   for (MuscleChain& c : chains) c.forced = false;
