@@ -78,7 +78,7 @@ void bindExtraction(py::module_& m) {
       "extract_muscles",
       [](const Character& character, double spacing, const py::object& vertexMask, double minConfidence,
          int minSections, int maxPerRegion, const py::object& forcedRegions, bool buildSurfaces,
-         double minRelative, double weakFraction, double minRelativeTrunk, bool mirrorLimbs, double faintRelative) {
+         double minRelative, double weakFraction, double minRelativeTrunk, bool mirrorLimbs, double faintRelative, double minEvidence) {
         ExtractionOptions o;
         if (spacing < 0) throw InputError("spacing must be >= 0 (0 = automatic)");
         if (minConfidence < 0 || minConfidence > 1) throw InputError("min_confidence must be in [0, 1]");
@@ -88,6 +88,8 @@ void bindExtraction(py::module_& m) {
         if (!(minRelativeTrunk >= 0)) throw InputError("min_relative_trunk must be >= 0");
         if (!(faintRelative >= 0 && faintRelative <= 1)) throw InputError("faint_relative must be in [0, 1]");
         o.faintRelative = faintRelative;
+        if (!(minEvidence >= 0)) throw InputError("min_evidence must be >= 0");
+        o.minEvidence = minEvidence;
         o.minRelative = minRelative;
         o.minRelativeTrunk = minRelativeTrunk;
         o.profiles.mirrorLimbs = mirrorLimbs;
@@ -115,6 +117,7 @@ void bindExtraction(py::module_& m) {
       py::arg("min_relative_trunk") = ExtractionOptions{}.minRelativeTrunk,
       py::arg("mirror_limbs") = ProfileOptions{}.mirrorLimbs,
       py::arg("faint_relative") = ExtractionOptions{}.faintRelative,
+      py::arg("min_evidence") = ExtractionOptions{}.minEvidence,
       "Extract muscles from a character's skin (Yang & Zhang 2006). spacing: metres between cutting planes "
       "(0 = automatic); vertex_mask: #V booleans, extract only there; forced_regions: list of #V masks, one "
       "muscle forced per region; min_confidence: drop weaker muscles; max_per_region: keep the most confident "
@@ -122,7 +125,8 @@ void bindExtraction(py::module_& m) {
       "sections' mean radius on average; min_relative_trunk: the same for the abdomen and neck families (the larger "
       "applies); mirror_limbs: average mirrored left/right limb profiles (exactly mirrored limbs); weak_fraction: hysteresis, bumps down to this share of the significance threshold "
       "extend muscles (1 = off); faint_relative: fainter bumps (down to half the threshold) extend a muscle only where "
-      "they reach this share of its peak significance (0 = off). Returns (muscles, report) where report has per-stage counts, skipped sections "
+      "they reach this share of its peak significance (0 = off); min_evidence: a muscle's summed bump significance, in "
+      "sections of the default spacing, must reach this (0 = off). Returns (muscles, report) where report has per-stage counts, skipped sections "
       "with reasons and timings per stage (seconds).");
 
   m.def(

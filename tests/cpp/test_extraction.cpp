@@ -588,8 +588,8 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
     if (c.x() > 0.01) ++left[part(m)];
     if (c.x() < -0.01) ++right[part(m)];
   }
-  // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Measured: arms 3 + 3,
-  // legs 2 + 2, torso 2 + 2 (abdomen flanks, shoulder caps); all 14 mirrored (worst 1.3 mm over centres, origins
+  // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Measured: arms 4 + 4,
+  // legs 1 + 1, torso 2 + 2 (abdomen flanks, shoulder caps); all 14 mirrored (worst 1.3 mm over centres, origins
   // and insertions). Before the abdomen's sections were split along their mirror axis: 6 of 8 pairs, worst 2.6 cm.
   for (const char* p : {"arm", "leg", "torso"}) std::printf("  %s: %d at +x, %d at -x (issue target: both)\n", p, left[p], right[p]);
   for (const char* p : {"arm", "leg", "torso"}) {
@@ -631,28 +631,31 @@ TEST(Measured, MakeHumanRobustToPlaneSpacing) {
     const Vec3 lo = c.mesh.vertices.colwise().minCoeff().transpose(), hi = c.mesh.vertices.colwise().maxCoeff().transpose();
     ExtractionOptions o;
     o.planes.spacing = f * (hi - lo).maxCoeff() / 80.0;
+    o.buildSurfaces = false;
     return o;
   };
-  // Measured (muscular vs neutral): x 0.95 16 vs 6, x 0.975 10 vs 11, x 1 14 vs 6, x 1.025 10 vs 10, x 1.05 12 vs 6.
-  // Asserted: every muscular muscle mirrored at every spacing (worst 1.3 mm), and the issue's "at most half" at
-  // the default and at +-5 % (before: 0.47-0.82 there). It does NOT hold in between (x 0.975 and x 1.025): chains
-  // of 4-6 sections near the section-count and magnitude floors come and go with the plane grid on both bodies.
-  for (double f : {0.95, 0.975, 1.025, 1.05}) {
+  // Measured (muscular vs neutral), spacing x 0.9 ... 1.1 in steps of 0.025: 16/4, 16/8, 16/6, 18/6, 14/6, 12/4,
+  // 18/6, 12/6, 11/4. The issue's "at most half" holds at every one (ExtractionOptions::minEvidence; with the
+  // earlier rule of 4 significant sections it failed at x 0.925, 0.975, 1.025, 1.075 and 1.1: 16/12, 10/11,
+  // 10/10, 10/6, 7/4). Every muscular muscle is mirrored within 1 cm (worst 1.3 mm) up to x 1.05; at x 1.075 a
+  // calf fragment's ends differ by 4 cm and at x 1.1 one thigh chain is kept on one side only (its mean height
+  // 0.091 vs 0.090 of the section radius against minRelative 0.09: the skin is not exactly symmetric there).
+  for (int step = 0; step <= 8; ++step) {
+    const double f = 0.9 + 0.025 * step;
     const ExtractionResult rm = extractMuscles(cm, spaced(cm, f)), rn = extractMuscles(cn, spaced(cn, f));
     const MirrorReport mr = mirrorReport(rm.muscles, 0.01);
     std::printf("spacing x %.3f: muscular %zu, neutral %zu; %d of %d muscular mirrored within 1 cm (worst %.4f m)\n",
                 f, rm.muscles.size(), rn.muscles.size(), mr.paired, mr.muscles, mr.worst);
-    EXPECT_GE(rm.muscles.size(), 8u) << f;
-    EXPECT_EQ(mr.paired, mr.muscles) << f;
-    if (f == 0.95 || f == 1.05) EXPECT_LE(2 * rn.muscles.size(), rm.muscles.size()) << f;
+    EXPECT_GE(rm.muscles.size(), 10u) << f;
+    EXPECT_LE(2 * rn.muscles.size(), rm.muscles.size()) << f;
+    if (f < 1.06) EXPECT_EQ(mr.paired, mr.muscles) << f;
   }
 }
 
 TEST(Measured, FaintHysteresisWithMirroredLimbs) {
-  // Opt-in: hysteresis down to half the threshold, mirrored limb profiles averaged. Measured: every seed's six
-  // muscles and nothing else (seed 2's brachialis followed over 7 sections, 61 % of its length, instead of 5 and
-  // 46 %); MakeHuman muscular 16 / 14 / 12 at spacing x 0.95 / 1 / 1.05 against neutral 8 / 6 / 6, every
-  // muscular one exactly mirrored. Not the default: the synthetic arm's biceps then reaches further towards the
+  // Opt-in: hysteresis down to half the threshold for every chain, mirrored limb profiles averaged. Measured:
+  // every seed's six muscles and nothing else; MakeHuman muscular 16 / 16 / 18 at spacing x 0.95 / 1 / 1.05
+  // against neutral 6 / 8 / 6, every muscular one exactly mirrored. Not the default: the synthetic arm's biceps then reaches further towards the
   // elbow and the hybrid skinning's elbow region at 35 degrees grows more than LBS loses (test_hybrid_skinning).
   ExtractionOptions o;
   o.weakFraction = 0.5;

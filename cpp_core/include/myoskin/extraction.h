@@ -27,7 +27,8 @@ struct LinkOptions {
   double maxLateralFactor = 0.9;
   double maxAngle = 0.45;       // radians (~26 degrees)
   int maxGap = 2;               // sections that may be missing between two linked bumps
-  int minSections = 4;          // a muscle needs at least this many significant sections
+  int minSections = 3;          // a muscle needs at least this many significant sections (and enough evidence:
+                                // ExtractionOptions::minEvidence)
   bool branches = true;         // join merging/splitting chains with a transition section
   double mergeFactor = 0.5;     // fragments of one belly (chains of a family whose centres come within this
                                 // times their larger mean semi-axis a at the same or a neighbouring plane)
@@ -42,7 +43,8 @@ struct EndOptions {
   // the visible (sectioned) length beyond each end; near-ties (within tieTolerance metres) prefer the
   // point further out, so a muscle that runs parallel to its bone gets a tendon of that length.
   double maxExtensionFraction = 0.35;
-  double tieTolerance = 0.004;
+  double tieTolerance = 0.005;  // measured on MakeHuman (spacing x 1.025): 4 mm put a calf muscle's insertion 1.1 cm
+                                // apart on the two legs (its extension runs almost parallel to the shin)
   int samplesPerEnd = 6;        // Hermite samples added to the root curve on each side
 };
 
@@ -89,6 +91,15 @@ struct ExtractionOptions {
                                                // tail below faintRelative 0.335, and then the hybrid skinning's whole-arm volume
                                                // at 140 degrees grows more (+0.84 %) than LBS loses (-0.82 %). Works for
                                                // faintRelative 0.335-0.395.
+  double minEvidence = 6.75;                   // a muscle's evidence, the sum of its linked bumps' significance (faint and
+                                               // weak links included) times plane spacing / the default spacing (1/80 of
+                                               // the skin's largest extent), must reach this: 4 sections at 1.7x the
+                                               // threshold, or 3 strong bellies at 2.25x. It varies smoothly with the plane
+                                               // grid where a count of sections over the threshold jumps. Measured: synthetic
+                                               // seed 2's brachialis 7.5 (the faintest true muscle), MakeHuman neutral's
+                                               // short soft contours 5.1-6.5, the muscular male's short bellies from 6.75;
+                                               // neutral at most half of muscular at spacing x 0.9-1.1 for 6.25-7.0 (with
+                                               // link.minSections 4 instead of this: 5 of 9 spacings fail). 0 = off
   double magnitudeFraction = 0.8;              // the magnitude floors (minRelative, minRelativeTrunk) average only
                                                // the bumps of at least this share of the threshold, so faint tail
                                                // links extend a muscle without diluting its magnitude
@@ -129,7 +140,8 @@ struct ExtractionReport {
   int chains = 0;                     // linked chains before the minimum-section filter
   int branches = 0;                   // transition sections placed at merges/splits
   int muscles = 0;                    // muscles returned
-  int droppedShort = 0, droppedConfidence = 0, droppedRegionLimit = 0;
+  int droppedShort = 0, droppedConfidence = 0, droppedRegionLimit = 0;  // short: too few significant sections or
+                                                                       // too little evidence (minEvidence)
   int droppedFlat = 0;                // muscles whose bumps stand out less than minRelative on average
   int droppedOverlap = 0;             // muscles of a dominated family where families overlap
   int forced = 0;                     // muscles from forced regions

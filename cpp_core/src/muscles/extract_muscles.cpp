@@ -251,13 +251,24 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     }
     if (best >= 0) chains[best].forced = true;
   }
+  // Evidence is counted in sections of the default spacing (ExtractionOptions::minEvidence).
+  double evidenceScale = 1.0;
+  if (options.planes.spacing > 0) {
+    const Vec3 lo = character.mesh.vertices.colwise().minCoeff().transpose();
+    const Vec3 hi = character.mesh.vertices.colwise().maxCoeff().transpose();
+    evidenceScale = options.planes.spacing / ((hi - lo).maxCoeff() / 80.0);
+  }
   std::vector<MuscleChain> kept;
   for (MuscleChain& c : chains) {
     if (c.forced) {
       kept.push_back(std::move(c));
       continue;
     }
-    if (c.strongSections < options.link.minSections) {
+    double evidence = 0.0;
+    for (const ChainLink& l : c.links)
+      if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size()))
+        evidence += sections[l.section].significance[l.bump];
+    if (c.strongSections < options.link.minSections || evidence * evidenceScale < options.minEvidence) {
       ++rep.droppedShort;
       continue;
     }
