@@ -91,15 +91,16 @@ struct ExtractionOptions {
                                                // tail below faintRelative 0.335, and then the hybrid skinning's whole-arm volume
                                                // at 140 degrees grows more (+0.84 %) than LBS loses (-0.82 %). Works for
                                                // faintRelative 0.335-0.395.
-  double minEvidence = 6.75;                   // a muscle's evidence, the sum of its linked bumps' significance (faint and
+  double minEvidence = 6.6;                    // a muscle's evidence, the sum of its linked bumps' significance (faint and
                                                // weak links included) times plane spacing / the default spacing (1/80 of
-                                               // the skin's largest extent), must reach this: 4 sections at 1.7x the
-                                               // threshold, or 3 strong bellies at 2.25x. It varies smoothly with the plane
+                                               // the skin's largest extent), must reach this: 4 sections at 1.65x the
+                                               // threshold, or 3 strong bellies at 2.2x. It varies smoothly with the plane
                                                // grid where a count of sections over the threshold jumps. Measured: synthetic
-                                               // seed 2's brachialis 7.5 (the faintest true muscle), MakeHuman neutral's
-                                               // short soft contours 5.1-6.5, the muscular male's short bellies from 6.75;
-                                               // neutral at most half of muscular at spacing x 0.9-1.1 for 6.25-7.0 (with
-                                               // link.minSections 4 instead of this: 5 of 9 spacings fail). 0 = off
+                                               // seed 2's brachialis 7.5 (the faintest true muscle); MakeHuman at the default
+                                               // spacing: the muscular thigh's chain 6.75 (kept), the neutral forearm's 6.51
+                                               // (dropped), so the two bodies' shortest chains lie close together; neutral
+                                               // at most half of muscular at every spacing x 0.9-1.1 for 6.25-7.0 (with
+                                               // link.minSections 4 instead: 5 of 9 spacings fail). 0 = off
   double magnitudeFraction = 0.8;              // the magnitude floors (minRelative, minRelativeTrunk) average only
                                                // the bumps of at least this share of the threshold, so faint tail
                                                // links extend a muscle without diluting its magnitude
