@@ -68,7 +68,7 @@ void usage(std::ostream& out) {
          "  generate arm -o DIR [--seed N] [--muscle-scale S]  write the procedural test arm\n"
          "                                                      (arm.obj, arm.skeleton.json, arm.truth.json)\n"
          "  extract CHARACTER -o muscles.json [--spacing M] [--min-confidence C] [--min-sections N]\n"
-         "          [--max-per-region N] [--no-surfaces]       extract muscles from the skin\n"
+         "          [--max-per-region N] [--min-evidence E] [--no-surfaces]   extract muscles from the skin\n"
          "  deform CHARACTER [--muscles M.json] --pose P.json -o out.obj|out.pc2 [--dominance D] [--threads N]\n"
          "          skin a pose (.obj) or a sequence of poses (.pc2, Blender's Mesh Cache modifier); pose\n"
          "          files: {\"bones\": {name: {\"rotation_quaternion\": [w,x,y,z]}}} or {\"frames\": [...]}\n"
@@ -152,6 +152,8 @@ int cmdExtract(const Args& args) {
   options.link.minSections = static_cast<int>(numberOption(args, "--min-sections", options.link.minSections));
   if (options.link.minSections < 1) throw InputError("--min-sections must be >= 1");
   options.maxPerRegion = static_cast<int>(numberOption(args, "--max-per-region", 0));
+  options.minEvidence = numberOption(args, "--min-evidence", options.minEvidence);
+  if (!(options.minEvidence >= 0)) throw InputError("--min-evidence must be >= 0");
   options.buildSurfaces = std::find(args.flags.begin(), args.flags.end(), "--no-surfaces") == args.flags.end();
   LoadOptions load;
   load.requireWeights = true;
@@ -253,7 +255,8 @@ int main(int argc, char** argv) {
     if (command == "generate") return cmdGenerate(parse(argc, argv, 2, {"--output", "--seed", "--muscle-scale"}));
     if (command == "extract")
       return cmdExtract(parse(argc, argv, 2,
-                              {"--output", "--skeleton", "--spacing", "--min-confidence", "--min-sections", "--max-per-region"}));
+                              {"--output", "--skeleton", "--spacing", "--min-confidence", "--min-sections", "--max-per-region",
+                               "--min-evidence"}));
     if (command == "deform")
       return cmdDeform(parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads"}));
     std::fprintf(stderr, "myoskin: error: unknown command '%s' (try myoskin --help)\n", command.c_str());

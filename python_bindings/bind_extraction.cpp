@@ -78,7 +78,8 @@ void bindExtraction(py::module_& m) {
       "extract_muscles",
       [](const Character& character, double spacing, const py::object& vertexMask, double minConfidence,
          int minSections, int maxPerRegion, const py::object& forcedRegions, bool buildSurfaces,
-         double minRelative, double weakFraction, double minRelativeTrunk, bool mirrorLimbs, double jointWrap) {
+         double minRelative, double weakFraction, double minRelativeTrunk, bool mirrorLimbs, double faintRelative,
+         double minEvidence, double jointWrap) {
         ExtractionOptions o;
         if (spacing < 0) throw InputError("spacing must be >= 0 (0 = automatic)");
         if (minConfidence < 0 || minConfidence > 1) throw InputError("min_confidence must be in [0, 1]");
@@ -88,6 +89,10 @@ void bindExtraction(py::module_& m) {
         if (!(minRelativeTrunk >= 0)) throw InputError("min_relative_trunk must be >= 0");
         if (!(jointWrap >= 0)) throw InputError("joint_wrap must be >= 0");
         o.ends.jointWrapFraction = jointWrap;
+        if (!(faintRelative >= 0 && faintRelative <= 1)) throw InputError("faint_relative must be in [0, 1]");
+        o.faintRelative = faintRelative;
+        if (!(minEvidence >= 0)) throw InputError("min_evidence must be >= 0");
+        o.minEvidence = minEvidence;
         o.minRelative = minRelative;
         o.minRelativeTrunk = minRelativeTrunk;
         o.profiles.mirrorLimbs = mirrorLimbs;
@@ -114,6 +119,8 @@ void bindExtraction(py::module_& m) {
       py::arg("weak_fraction") = ExtractionOptions{}.weakFraction,
       py::arg("min_relative_trunk") = ExtractionOptions{}.minRelativeTrunk,
       py::arg("mirror_limbs") = ProfileOptions{}.mirrorLimbs,
+      py::arg("faint_relative") = ExtractionOptions{}.faintRelative,
+      py::arg("min_evidence") = ExtractionOptions{}.minEvidence,
       py::arg("joint_wrap") = EndOptions{}.jointWrapFraction,
       "Extract muscles from a character's skin (Yang & Zhang 2006). spacing: metres between cutting planes "
       "(0 = automatic); vertex_mask: #V booleans, extract only there; forced_regions: list of #V masks, one "
@@ -121,8 +128,10 @@ void bindExtraction(py::module_& m) {
       "per region (0 = all); min_relative: drop muscles whose bumps stand out less than this share of their "
       "sections' mean radius on average; min_relative_trunk: the same for the abdomen and neck families (instead of "
       "min_relative, against their Fourier base); mirror_limbs: average mirrored left/right limb profiles (exactly mirrored limbs); weak_fraction: hysteresis, bumps down to this share of the significance threshold "
-      "extend muscles (1 = off); joint_wrap: a muscle crossing a joint wraps round it on a sphere of this times its "
-      "mean semi-axis b (0 = straight lines). Returns (muscles, report) where report has per-stage counts, skipped sections "
+      "extend muscles (1 = off); faint_relative: fainter bumps (down to half the threshold) extend a muscle only where "
+      "they reach this share of its peak significance (0 = off); min_evidence: a muscle's summed bump significance, in "
+      "sections of the default spacing, must reach this (0 = off); joint_wrap: a muscle crossing a joint wraps round it "
+      "on a sphere of this times its mean semi-axis b (0 = straight lines). Returns (muscles, report) where report has per-stage counts, skipped sections "
       "with reasons and timings per stage (seconds).");
 
   m.def(

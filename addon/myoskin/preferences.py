@@ -19,7 +19,7 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
         default=0.5, min=0.0, max=1.0)
     min_sections: IntProperty(
         name="Minimum Sections", description="Sections a muscle needs to be kept by extraction",
-        default=4, min=1, soft_max=20)
+        default=3, min=1, soft_max=20)
     joints_per_muscle: IntProperty(
         name="Joints per Muscle", description="Muscle joints (deform bones) placed along each muscle's action path",
         default=4, min=1, soft_max=16)
@@ -47,7 +47,7 @@ class _Defaults:
     """The preference defaults, for scripts run without the add-on enabled."""
     section_spacing = 0.0
     min_confidence = 0.5
-    min_sections = 4
+    min_sections = 3
     joints_per_muscle = 4
     bulge_factor = 1.0
 

@@ -113,7 +113,7 @@ def test_bl_info_and_manifest():
 def test_preferences_defaults():
     prefs = bpy.context.preferences.addons[ADDON].preferences
     assert prefs.section_spacing == 0.0  # automatic, as the core's default
-    assert prefs.joints_per_muscle == 4 and abs(prefs.bulge_factor - 1.0) < 1e-9 and prefs.min_sections == 4
+    assert prefs.joints_per_muscle == 4 and abs(prefs.bulge_factor - 1.0) < 1e-9 and prefs.min_sections == 3
     assert addon_module("preferences").get_preferences().joints_per_muscle == 4
 
 

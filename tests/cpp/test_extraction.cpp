@@ -200,6 +200,36 @@ TEST(Linking, FragmentsOfOneBellyMerge) {
   EXPECT_EQ(merged[0].realSections, 10);
 }
 
+TEST(Linking, FaintLinksStayOnlyNearTheChainsPeak) {
+  // Two muscles with the same faint tails (significance 0.7 in the first and last two sections): a faint one
+  // (peak 1.5) keeps them, a strong one (peak 3) does not; transition-free, no gaps.
+  std::vector<SectionBumps> s;
+  for (int i = 0; i < 10; ++i) {
+    SectionBumps p = plane(i);
+    const bool tail = i < 2 || i >= 8;
+    addBump(p, 90, 0.04, 0.02, 0.01, tail ? 0.7 : 3.0);
+    addBump(p, -90, 0.04, 0.02, 0.01, tail ? 0.7 : 1.5);
+    s.push_back(p);
+  }
+  LinkOptions o;
+  EXPECT_EQ(linkBumps(s, o).size(), 2u);
+  for (const MuscleChain& c : linkBumps(s, o)) EXPECT_EQ(c.realSections, 10);
+  o.faintBelow = 0.8;
+  o.faintRelative = 0.36;
+  const auto chains = linkBumps(s, o);
+  ASSERT_EQ(chains.size(), 2u);
+  for (const MuscleChain& c : chains) {
+    const bool strong = c.links.front().ellipse.center.y() > 0;
+    EXPECT_EQ(c.realSections, strong ? 6 : 10);
+    EXPECT_EQ(c.strongSections, 6);
+    EXPECT_EQ(s[c.links.front().section].plane.order, strong ? 2 : 0);
+    EXPECT_EQ(s[c.links.back().section].plane.order, strong ? 7 : 9);
+  }
+  // Forced bumps always stay.
+  for (SectionBumps& p : s) p.forced.assign(p.ellipses.size(), 1);
+  for (const MuscleChain& c : linkBumps(s, o)) EXPECT_EQ(c.realSections, 10);
+}
+
 TEST(Linking, ConfidenceGrowsWithSectionsAndSignificance) {
   auto chainOf = [](int n, double sig) {
     std::vector<SectionBumps> s;
@@ -408,12 +438,15 @@ TEST(Measured, SyntheticArmRecallPrecision) {
     if (seed == 0) printMuscles(r.muscles);
     for (size_t t = 0; t < arm.muscles.size(); ++t)
       if (acc.matchOfTrue[t] < 0) std::printf("  missed true muscle %s (%s)\n", arm.muscles[t].name.c_str(), arm.muscles[t].bone.c_str());
-    // Issue 3's target: recall and precision >= 0.9. Measured: all 6 matched and nothing else on seeds 0, 1
-    // and 3; on seed 2 the brachialis (mostly buried between biceps and elbow) shows in only 5 sections: it
-    // is found but too short to cover 60 % of its length (recall and precision 0.83 there).
+    // Issue 3's target: recall and precision >= 0.9 on every seed. Measured: all 6 matched and nothing else on
+    // every seed. Seed 2's brachialis (mostly buried between biceps and elbow) stands out in only 5 sections;
+    // its faint tails (ExtractionOptions::faintRelative) extend it to 7, 61 % of its length (without them it
+    // covers 46 %: recall and precision 0.83).
     std::printf("  (issue target: recall >= 0.9, precision >= 0.9)\n");
-    EXPECT_GE(acc.matched, seed == 2 ? 5 : 6) << "seed " << seed;
-    EXPECT_LE(acc.foundMuscles - acc.matched, seed == 2 ? 1 : 0) << "seed " << seed;
+    EXPECT_GE(acc.recall, 0.9) << "seed " << seed;
+    EXPECT_GE(acc.precision, 0.9) << "seed " << seed;
+    EXPECT_EQ(acc.matched, 6) << "seed " << seed;
+    EXPECT_EQ(acc.foundMuscles, 6) << "seed " << seed;
     EXPECT_LT(acc.meanCenterError, 0.35) << "seed " << seed;
     recallSum += acc.recall;
     precisionSum += acc.precision;
@@ -424,7 +457,7 @@ TEST(Measured, SyntheticArmRecallPrecision) {
     }
     EXPECT_NO_THROW(validateMuscles(r.muscles));
   }
-  std::printf("mean over seeds 0-3: recall %.3f precision %.3f (target 0.9 / 0.9; measured 0.958 / 0.958)\n",
+  std::printf("mean over seeds 0-3: recall %.3f precision %.3f (target 0.9 / 0.9; measured 1.0 / 1.0)\n",
               recallSum / 4, precisionSum / 4);
   EXPECT_GE(recallSum / 4, 0.9);
   EXPECT_GE(precisionSum / 4, 0.9);
@@ -555,9 +588,10 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
     if (c.x() > 0.01) ++left[part(m)];
     if (c.x() < -0.01) ++right[part(m)];
   }
-  // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Measured: arms 3 + 3,
-  // legs 2 + 2, torso 2 + 2 (abdomen: external oblique into serratus; shoulder planes: pectorals); all 14 mirrored
-  // (worst 1.3 mm over centres, origins and insertions). Before the abdomen's sections were split along their mirror axis: 6 of 8 pairs, worst 2.6 cm.
+  // Issue 3's target: muscles on both arms, legs and the torso, all mirrored within 1 cm. Measured: arms 4 + 4,
+  // legs 2 + 2, torso 2 + 2 (abdomen: external oblique into serratus; shoulder planes: pectorals); all 16 mirrored
+  // (worst 1.3 mm over centres, origins and insertions). Before the abdomen's sections were split along their
+  // mirror axis: 6 of 8 pairs, worst 2.6 cm.
   for (const char* p : {"arm", "leg", "torso"}) std::printf("  %s: %d at +x, %d at -x (issue target: both)\n", p, left[p], right[p]);
   for (const char* p : {"arm", "leg", "torso"}) {
     EXPECT_GE(left[p], 1) << p;
@@ -579,7 +613,7 @@ TEST(Measured, MakeHumanMuscularVersusNeutral) {
 
   const Character cn = loadCharacter(neutral);
   const ExtractionResult rn = extractMuscles(cn);
-  std::printf("muscular male: %zu muscles, neutral: %zu muscles (issue target: neutral at most half; measured 14 vs 6)\n",
+  std::printf("muscular male: %zu muscles, neutral: %zu muscles (issue target: neutral at most half; measured 16 vs 6)\n",
               rm.muscles.size(), rn.muscles.size());
   printMuscles(rn.muscles);
   EXPECT_GE(rm.muscles.size(), 12u);
@@ -676,28 +710,31 @@ TEST(Measured, MakeHumanRobustToPlaneSpacing) {
     const Vec3 lo = c.mesh.vertices.colwise().minCoeff().transpose(), hi = c.mesh.vertices.colwise().maxCoeff().transpose();
     ExtractionOptions o;
     o.planes.spacing = f * (hi - lo).maxCoeff() / 80.0;
+    o.buildSurfaces = false;
     return o;
   };
-  // Measured (muscular vs neutral): x 0.95 16 vs 6, x 0.975 10 vs 11, x 1 14 vs 6, x 1.025 10 vs 10, x 1.05 12 vs 6.
-  // Asserted: every muscular muscle mirrored at every spacing (worst 1.3 mm), and the issue's "at most half" at
-  // the default and at +-5 % (before: 0.47-0.82 there). It does NOT hold in between (x 0.975 and x 1.025): chains
-  // of 4-6 sections near the section-count and magnitude floors come and go with the plane grid on both bodies.
-  for (double f : {0.95, 0.975, 1.025, 1.05}) {
+  // Measured (muscular vs neutral), spacing x 0.9 ... 1.1 in steps of 0.025: 16/4, 16/8, 16/6, 18/6, 16/6, 12/4,
+  // 18/6, 12/6, 11/4. The issue's "at most half" holds at every one (ExtractionOptions::minEvidence; with the
+  // earlier rule of 4 significant sections it failed at x 0.925, 0.975, 1.025, 1.075 and 1.1: 16/12, 10/11,
+  // 10/10, 10/6, 7/4). Every muscular muscle is mirrored within 1 cm (worst 1.3 mm) up to x 1.05; at x 1.075 a
+  // calf fragment's ends differ by 4 cm and at x 1.1 one thigh chain is kept on one side only (its mean height
+  // 0.091 vs 0.090 of the section radius against minRelative 0.09: the skin is not exactly symmetric there).
+  for (int step = 0; step <= 8; ++step) {
+    const double f = 0.9 + 0.025 * step;
     const ExtractionResult rm = extractMuscles(cm, spaced(cm, f)), rn = extractMuscles(cn, spaced(cn, f));
     const MirrorReport mr = mirrorReport(rm.muscles, 0.01);
     std::printf("spacing x %.3f: muscular %zu, neutral %zu; %d of %d muscular mirrored within 1 cm (worst %.4f m)\n",
                 f, rm.muscles.size(), rn.muscles.size(), mr.paired, mr.muscles, mr.worst);
-    EXPECT_GE(rm.muscles.size(), 8u) << f;
-    EXPECT_EQ(mr.paired, mr.muscles) << f;
-    if (f == 0.95 || f == 1.05) EXPECT_LE(2 * rn.muscles.size(), rm.muscles.size()) << f;
+    EXPECT_GE(rm.muscles.size(), 10u) << f;
+    EXPECT_LE(2 * rn.muscles.size(), rm.muscles.size()) << f;
+    if (f < 1.06) EXPECT_EQ(mr.paired, mr.muscles) << f;
   }
 }
 
 TEST(Measured, FaintHysteresisWithMirroredLimbs) {
-  // Opt-in: hysteresis down to half the threshold, mirrored limb profiles averaged. Measured: every seed's six
-  // muscles and nothing else (seed 2's brachialis followed over 7 sections, 61 % of its length, instead of 5 and
-  // 46 %); MakeHuman muscular 16 / 14 / 12 at spacing x 0.95 / 1 / 1.05 against neutral 8 / 6 / 6, every
-  // muscular one exactly mirrored. Not the default: the synthetic arm's biceps then reaches further towards the
+  // Opt-in: hysteresis down to half the threshold for every chain, mirrored limb profiles averaged. Measured:
+  // every seed's six muscles and nothing else; MakeHuman muscular 18 / 16 / 18 at spacing x 0.95 / 1 / 1.05
+  // against neutral 6 / 8 / 6, every muscular one exactly mirrored. Not the default: the synthetic arm's biceps then reaches further towards the
   // elbow and the hybrid skinning's elbow region at 35 degrees grows more than LBS loses (test_hybrid_skinning).
   ExtractionOptions o;
   o.weakFraction = 0.5;

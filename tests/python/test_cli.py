@@ -40,6 +40,22 @@ def test_generate_arm_writes_a_loadable_character(tmp_path):
     assert "(closed manifold)" in info.stdout
 
 
+def test_extract_min_evidence(tmp_path):
+    r = run_cli("generate", "arm", "-o", str(tmp_path), "--seed", "2")
+    assert r.returncode == 0, r.stderr
+    arm = str(tmp_path / "arm.obj")
+    counts = []
+    for evidence in ("0", "6.6", "1000"):
+        out = tmp_path / ("m%s.json" % evidence)
+        r = run_cli("extract", arm, "-o", str(out), "--min-evidence", evidence, "--no-surfaces")
+        assert r.returncode == 0, r.stderr
+        data = json.load(open(out))
+        counts.append(len(data["muscles"] if isinstance(data, dict) else data))
+    assert counts[0] >= counts[1] == 6 and counts[2] == 0, counts  # seed 2: its six muscles at the default
+    r = run_cli("extract", arm, "-o", str(tmp_path / "x.json"), "--min-evidence", "-1")
+    assert r.returncode != 0 and "--min-evidence" in r.stderr
+
+
 def _write_obj(path, vertices, faces):
     with open(path, "w") as f:
         for v in vertices:

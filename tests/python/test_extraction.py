@@ -52,6 +52,9 @@ def test_user_control_options(core, arm):
     assert none == []
     flat, report = core.extract_muscles(character, min_relative=0.5)
     assert flat == [] and report["dropped_flat"] >= len(everything)
+    # The evidence floor only removes muscles (no muscle of this arm has 100 sections' worth of significance).
+    assert core.extract_muscles(character, min_evidence=100.0)[0] == []
+    assert len(core.extract_muscles(character, min_evidence=0.0)[0]) >= len(everything)
     # Hysteresis (the default) measures at least as well as none on this arm (seed 2: precision 1.0 vs 0.83).
     strict, _ = core.extract_muscles(character, weak_fraction=1.0)
     with_h, without = core.measure_extraction(everything, arm[1]), core.measure_extraction(strict, arm[1])
@@ -105,6 +108,10 @@ def test_bad_input_raises_value_error(core, arm):
         core.extract_muscles(character, weak_fraction=0.0)
     with pytest.raises(ValueError, match="min_relative"):
         core.extract_muscles(character, min_relative=float("nan"))
+    with pytest.raises(ValueError, match="faint_relative"):
+        core.extract_muscles(character, faint_relative=1.5)
+    with pytest.raises(ValueError, match="min_evidence"):
+        core.extract_muscles(character, min_evidence=-1.0)
     with pytest.raises(ValueError, match="levels"):
         core.subdivide(character, -1)
 

@@ -27,11 +27,15 @@ struct LinkOptions {
   double maxLateralFactor = 0.9;
   double maxAngle = 0.45;       // radians (~26 degrees)
   int maxGap = 2;               // sections that may be missing between two linked bumps
-  int minSections = 4;          // a muscle needs at least this many significant sections
+  int minSections = 3;          // a muscle needs at least this many significant sections (and enough evidence:
+                                // ExtractionOptions::minEvidence)
   bool branches = true;         // join merging/splitting chains with a transition section
   double mergeFactor = 0.5;     // fragments of one belly (chains of a family whose centres come within this
                                 // times their larger mean semi-axis a at the same or a neighbouring plane)
                                 // are merged into one chain
+  double faintBelow = 0.0;      // faint links: real links whose significance is below faintBelow are kept only
+  double faintRelative = 0.0;   // where they reach faintRelative x their chain's peak significance (after fragments
+                                // merged; a transition section next to a dropped link goes too); 0 = keep every link
 };
 
 struct EndOptions {
@@ -39,13 +43,14 @@ struct EndOptions {
   // the visible (sectioned) length beyond each end; near-ties (within tieTolerance metres) prefer the
   // point further out, so a muscle that runs parallel to its bone gets a tendon of that length.
   double maxExtensionFraction = 0.35;
-  double tieTolerance = 0.004;
+  double tieTolerance = 0.005;  // measured on MakeHuman (spacing x 1.025): 4 mm put a calf muscle's insertion 1.1 cm
+                                // apart on the two legs (its extension runs almost parallel to the shin)
   int samplesPerEnd = 6;        // Hermite samples added to the root curve on each side
   // A muscle whose origin and insertion lie on different bones of one chain crosses a joint: it gets a joint
   // wrap there (the sphere on the crossed bone's head farthest from the straight line; radius this times the
   // muscle's mean semi-axis b, at most 0.8 of either end's distance from the joint), so its action line bends
   // round the joint with the skeleton instead of cutting the corner. Measured on the synthetic arm (seeds 0-3,
-  // shoulder swing 60 degrees): skin volume -1.1 to -2.0 % instead of -1.5 to -9.8 % (plain LBS -0.1 %);
+  // shoulder swing 60 degrees): skin volume -1.1 to -1.8 % instead of -1.5 to -9.8 % (plain LBS -0.1 %);
   // 0 = straight lines (the paper's default).
   double jointWrapFraction = 0.3;
 };
@@ -74,13 +79,35 @@ struct ExtractionOptions {
                                                // threshold are linked too, so a muscle whose bump fades
                                                // towards its tendons (or under a neighbour) is followed further;
                                                // a muscle needs link.minSections significant sections.
-                                               // 1 = no hysteresis. Measured: 0.8 follows the synthetic seed 2's
+                                               // 1 = none (the faint links below are separate). Measured (faintRelative 0): 0.8 follows the synthetic seed 2's
                                                // brachialis over 5 sections (46 % of its length: a miss), 0.5 over 7
                                                // (61 %: recall and precision 1.0 on seeds 0-3; with
                                                // profiles.mirrorLimbs MakeHuman's calves stay mirrored), but 0.5 also
                                                // lengthens the synthetic arm's biceps towards the elbow: the hybrid
                                                // skinning's elbow region at 35 degrees grows +6.5 % (0.6: +4.4 %)
                                                // where LBS loses 3.6 % (0.8: +2.9 %), failing test_hybrid_skinning
+  double faintFraction = 0.5;                  // a second, conditional hysteresis: bumps from this share of the threshold
+  double faintRelative = 0.36;                 // up to weakFraction are linked too, but a chain keeps them only where they
+                                               // reach faintRelative of its own peak significance: a faint muscle is followed
+                                               // further as it fades (under a neighbour, towards its tendons), a strong one is
+                                               // not stretched over its tendons' soft relief (faintRelative 0 = off; linking
+                                               // options LinkOptions::faintBelow/faintRelative). Measured on the synthetic arm:
+                                               // seed 2's brachialis (peak 1.52) keeps its tails at 0.73 and 0.61 (7 sections,
+                                               // 61 % covered: recall and precision 1.0 on seeds 0-3); the biceps' (peak 2.9)
+                                               // at 0.62-0.70 stay off; seed 1's forearm flexors (peak 1.79) keep a 0.59 elbow
+                                               // tail below faintRelative 0.335, and then the hybrid skinning's whole-arm volume
+                                               // at 140 degrees grows more (+0.84 %) than LBS loses (-0.82 %). Works for
+                                               // faintRelative 0.335-0.395.
+  double minEvidence = 6.6;                    // a muscle's evidence, the sum of its linked bumps' significance (faint and
+                                               // weak links included) times plane spacing / the default spacing (1/80 of
+                                               // the skin's largest extent), must reach this: 4 sections at 1.65x the
+                                               // threshold, or 3 strong bellies at 2.2x. It varies smoothly with the plane
+                                               // grid where a count of sections over the threshold jumps. Measured: synthetic
+                                               // seed 2's brachialis 7.5 (the faintest true muscle); MakeHuman at the default
+                                               // spacing: the muscular thigh's chain 6.75 (kept), the neutral forearm's 6.51
+                                               // (dropped), so the two bodies' shortest chains lie close together; neutral
+                                               // at most half of muscular at every spacing x 0.9-1.1 for 6.25-7.0 (with
+                                               // link.minSections 4 instead: 5 of 9 spacings fail). 0 = off
   double magnitudeFraction = 0.8;              // the magnitude floors (minRelative, minRelativeTrunk) average only
                                                // the bumps of at least this share of the threshold, so faint tail
                                                // links extend a muscle without diluting its magnitude
@@ -126,7 +153,8 @@ struct ExtractionReport {
   int chains = 0;                     // linked chains before the minimum-section filter
   int branches = 0;                   // transition sections placed at merges/splits
   int muscles = 0;                    // muscles returned
-  int droppedShort = 0, droppedConfidence = 0, droppedRegionLimit = 0;
+  int droppedShort = 0, droppedConfidence = 0, droppedRegionLimit = 0;  // short: too few significant sections or
+                                                                       // too little evidence (minEvidence)
   int droppedFlat = 0;                // muscles whose bumps stand out less than minRelative on average
   int droppedOverlap = 0;             // muscles of a dominated family where families overlap
   int forced = 0;                     // muscles from forced regions

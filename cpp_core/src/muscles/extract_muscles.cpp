@@ -139,8 +139,10 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       }
       const SectionTriangulation tri = triangulateSection(prof.polygon, split);
       w.split = !tri.diagonals.empty();
-      // Hysteresis: bumps down to weakFraction of the threshold, significance still relative to the threshold.
-      const double weak = std::clamp(options.weakFraction, 1e-3, 1.0);
+      // Hysteresis: bumps down to weakFraction of the threshold (faintFraction for the conditional faint links),
+      // significance still relative to the threshold.
+      const double weak =
+          std::clamp(std::min(options.weakFraction, options.faintRelative > 0 ? options.faintFraction : 1.0), 1e-3, 1.0);
       BumpOptions low = options.bumps;
       if (prof.plane.mirrorAxis && options.trunkHarmonics > 0) low.baseHarmonics = options.trunkHarmonics;
       low.minProtrusion *= weak;
@@ -253,7 +255,12 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
 
   // Stage 5: linking.
   t0 = Clock::now();
-  std::vector<MuscleChain> chains = linkBumps(sections, options.link, &rep.branches);
+  LinkOptions linkOptions = options.link;  // faint links (below weakFraction) kept only near their chain's peak
+  if (options.faintRelative > 0 && options.faintFraction < options.weakFraction) {
+    linkOptions.faintBelow = std::clamp(options.weakFraction, 1e-3, 1.0);
+    linkOptions.faintRelative = options.faintRelative;
+  }
+  std::vector<MuscleChain> chains = linkBumps(sections, linkOptions, &rep.branches);
   rep.chains = static_cast<int>(chains.size());
   // Each forced region keeps one chain: the one with the most links from that region.
   for (MuscleChain& c : chains) c.forced = false;
@@ -267,13 +274,24 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     }
     if (best >= 0) chains[best].forced = true;
   }
+  // Evidence is counted in sections of the default spacing (ExtractionOptions::minEvidence).
+  double evidenceScale = 1.0;
+  if (options.planes.spacing > 0) {
+    const Vec3 lo = character.mesh.vertices.colwise().minCoeff().transpose();
+    const Vec3 hi = character.mesh.vertices.colwise().maxCoeff().transpose();
+    evidenceScale = options.planes.spacing / ((hi - lo).maxCoeff() / 80.0);
+  }
   std::vector<MuscleChain> kept;
   for (MuscleChain& c : chains) {
     if (c.forced) {
       kept.push_back(std::move(c));
       continue;
     }
-    if (c.strongSections < options.link.minSections) {
+    double evidence = 0.0;
+    for (const ChainLink& l : c.links)
+      if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size()))
+        evidence += sections[l.section].significance[l.bump];
+    if (c.strongSections < options.link.minSections || evidence * evidenceScale < options.minEvidence) {
       ++rep.droppedShort;
       continue;
     }

@@ -123,6 +123,41 @@ void mergeFragments(std::vector<MuscleChain>& chains, const std::vector<SectionB
   }
 }
 
+double linkSignificance(const ChainLink& l, const std::vector<SectionBumps>& sections) {
+  const std::vector<double>& sig = sections[l.section].significance;
+  return l.bump >= 0 && l.bump < static_cast<int>(sig.size()) ? sig[l.bump] : 0.0;
+}
+
+// Faint links (significance below faintBelow) stay only where they reach faintRelative of the chain's peak;
+// a transition section whose neighbouring real link goes goes with it.
+void trimFaintLinks(std::vector<MuscleChain>& chains, const std::vector<SectionBumps>& sections, const LinkOptions& o) {
+  for (MuscleChain& ch : chains) {
+    double peak = 0.0;
+    for (const ChainLink& l : ch.links) peak = std::max(peak, linkSignificance(l, sections));
+    const double keepAt = std::min(o.faintBelow, o.faintRelative * peak);
+    auto faint = [&](const ChainLink& l) {
+      if (l.bump < 0) return false;
+      if (!sections[l.section].forced.empty() && sections[l.section].forced[l.bump]) return false;
+      return linkSignificance(l, sections) < keepAt;
+    };
+    std::vector<ChainLink> kept;
+    for (size_t i = 0; i < ch.links.size(); ++i) {
+      const ChainLink& l = ch.links[i];
+      if (faint(l)) continue;
+      if (l.bump < 0 && ((i + 1 < ch.links.size() && faint(ch.links[i + 1])) || (i > 0 && faint(ch.links[i - 1])))) continue;
+      kept.push_back(l);
+    }
+    ch.links = std::move(kept);
+  }
+  chains.erase(std::remove_if(chains.begin(), chains.end(),
+                              [](const MuscleChain& c) {
+                                for (const ChainLink& l : c.links)
+                                  if (l.bump >= 0) return false;
+                                return true;
+                              }),
+               chains.end());
+}
+
 struct OpenChain {
   int chain;      // index into the output
   int lastOrder;  // order of its last real link
@@ -235,6 +270,7 @@ std::vector<MuscleChain> linkBumps(const std::vector<SectionBumps>& sections, co
   }
 
   mergeFragments(chains, sections, options);
+  if (options.faintBelow > 0 && options.faintRelative > 0) trimFaintLinks(chains, sections, options);
   for (MuscleChain& ch : chains) {
     ch.realSections = ch.strongSections = 0;
     std::map<int, int> boneVotes;
