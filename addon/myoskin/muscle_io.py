@@ -228,9 +228,27 @@ def update_wrap_display(arm_obj, item):
     return display
 
 
+def fit_joint_wrap(arm_obj, item):
+    """A joint wrap's sphere shrinks to 0.8 of the nearer locator's distance when a locator was moved into
+    it (the core refuses an end inside the sphere). Returns True when the radius changed."""
+    if item.wrap_type != 'joint' or item.wrap_bone not in arm_obj.data.bones:
+        return False
+    centre = np.array(arm_obj.data.bones[item.wrap_bone].head_local, dtype=np.float64)
+    ends = [getattr(item, end + "_locator") for end in LOCATOR_ENDS]
+    if any(loc is None for loc in ends):
+        return False
+    nearest = min(float(np.linalg.norm(locator_rest_position(loc) - centre)) for loc in ends)
+    if item.wrap_radius < nearest or nearest <= 1e-6:
+        return False
+    item["wrap_radius"] = 0.8 * nearest  # no update callback: the caller refreshes
+    update_wrap_display(arm_obj, item)
+    return True
+
+
 def refresh_muscle(arm_obj, item):
     """Re-attach a muscle to its locators' positions through the core (root-curve ends and surface are
     rebuilt), store the result and redraw its surface. Returns the core Muscle."""
+    fit_joint_wrap(arm_obj, item)
     muscle = core_loader.core().reattach_muscle(item_to_core(arm_obj, item))
     store_core(item, muscle)
     write_surface(arm_obj, item, muscle.surface_vertices, muscle.surface_triangles)

@@ -315,6 +315,20 @@ def test_moving_a_locator_updates_the_muscle():
     assert np.array_equal(mesh_co(item.surface), surface)
 
 
+def test_locator_moved_into_the_joint_sphere_shrinks_it():
+    arm, skin, state = extracted_arm()
+    item = next(m for m in state.muscles if m.wrap_type == 'joint')
+    centre = np.array(arm.data.bones[item.wrap_bone].head_local)
+    radius = item.wrap_radius
+    # drag the insertion to half the radius from the joint centre: the sphere shrinks to fit, no error
+    item.insertion_locator.location = centre + np.array([0.5 * radius, 0.0, 0.0])
+    bpy.context.view_layer.update()
+    assert abs(item.wrap_radius - 0.4 * radius) < 1e-6, (item.wrap_radius, radius)
+    assert abs(item.wrap_locator.empty_display_size - item.wrap_radius) < 1e-6
+    character = module("blender_io").character_from_blender(skin, arm)
+    core().MuscleRig(character, [module("muscle_io").item_to_core(arm, item)])  # a valid rig
+
+
 def test_snap_locator_to_nearest_bone():
     arm, skin, state = extracted_arm()
     state.active_index = 0
