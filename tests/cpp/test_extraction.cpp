@@ -626,8 +626,8 @@ TEST(Measured, MakeHumanChestIsSectionedAndHasPectorals) {
   // The trunk planes through the shoulders used to run into the arms and were skipped (7 of 23 abdomen planes);
   // their runs over the arms are now chords, so every trunk plane gives a section. Against the trunk's Fourier
   // base the pectorals stand out on the front of the chest: a muscle on each side there (measured: centre
-  // (+-0.117, 0.477, 0.076), 7 sections, from the shoulder family's planes, origin shoulder01, insertion
-  // upperarm01), and the flanks are no longer whole-side "muscles".
+  // (+-0.054, 0.444, 0.084), 9 sections of the abdomen's planes, origin spine03, insertion clavicle; before the
+  // evidence test it came from the shoulder planes), and the flanks are no longer whole-side "muscles".
   const std::string muscular = test::sharedPath("characters/makehuman_muscular_male/makehuman_muscular_male.glb");
   MYOSKIN_REQUIRE_SHARED(muscular);
   const Character c = loadCharacter(muscular);
