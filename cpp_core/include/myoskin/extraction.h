@@ -115,7 +115,20 @@ struct ExtractionOptions {
                                                // their sections' mean radius (a belly is large for its limb; soft
                                                // body contours of thick sections are not); forced ones are kept.
                                                // Measured: synthetic muscles 0.106-0.33, MakeHuman neutral's
-                                               // flattest contours 0.083-0.085 (0 = off)
+                                               // flattest contours 0.083-0.085 (0 = off; continuous chains: minRelativeContinuous)
+  double minRelativeContinuous = 0.055;        // the floor instead of minRelative for a continuous limb chain: its bumps of at
+  double continuousEvidence = 8.0;             // least magnitudeFraction stand out in every plane between its ends, and its
+                                               // evidence (see minEvidence) reaches continuousEvidence. A big belly on a thick
+                                               // limb rounds the whole section, so its relief against the base is small but
+                                               // steady; soft contours of the same height come and go along the limb.
+                                               // Measured on MakeHuman, spacing x 0.9-1.1: the muscular male's quadriceps
+                                               // stand out 0.061-0.074 of the thigh's radius over 6-8 consecutive planes
+                                               // (evidence 8.85-10.2; found at every spacing, both sides); the neutral body's
+                                               // flattest chains that miss minRelative (0.076-0.087) skip 2-4 planes or are
+                                               // short (its only continuous one: evidence 7.25 at x 0.95), so its counts do
+                                               // not change. Works for floors 0.05-0.06 (0.065 loses the quadriceps at x 0.95
+                                               // and 1.1) and evidence 7.5-8.5 (counting strong sections instead, 4 gives an
+                                               // unpaired calf at x 1.05 and 5 loses the quadriceps at x 0.95). 0 = off
   double minRelativeTrunk = 0.05;              // the floor for the trunk families instead (abdomen, neck: planes across
                                                // the whole body), whose bumps are measured against the Fourier base
                                                // (trunkHarmonics). Measured on MakeHuman: the muscular male's
