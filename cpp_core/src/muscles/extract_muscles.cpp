@@ -311,9 +311,9 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     }
     const bool trunk = c.family == "abdomen" || c.family == "neck";
     double floor = trunk ? options.minRelativeTrunk : options.minRelative;
-    if (!trunk && options.minRelativeContinuous > 0 && options.minRelativeContinuous < floor &&
-        evidence * evidenceScale >= options.continuousEvidence && continuousChain(c, sections, options.magnitudeFraction))
-      floor = options.minRelativeContinuous;
+    if (!trunk && options.continuousFraction > 0 && evidence * evidenceScale >= options.continuousEvidence &&
+        continuousChain(c, sections, options.magnitudeFraction))
+      floor *= std::min(options.continuousFraction, 1.0);
     if (floor > 0) {  // the bumps' mean height relative to their sections' size (the faint tail links left out)
       double sum = 0.0;
       int count = 0;
