@@ -79,7 +79,7 @@ void bindExtraction(py::module_& m) {
       [](const Character& character, double spacing, const py::object& vertexMask, double minConfidence,
          int minSections, int maxPerRegion, const py::object& forcedRegions, bool buildSurfaces,
          double minRelative, double weakFraction, double minRelativeTrunk, bool mirrorLimbs, double faintRelative,
-         double minEvidence, double jointWrap) {
+         double minEvidence, double jointWrap, double continuousFraction, double continuousEvidence) {
         ExtractionOptions o;
         if (spacing < 0) throw InputError("spacing must be >= 0 (0 = automatic)");
         if (minConfidence < 0 || minConfidence > 1) throw InputError("min_confidence must be in [0, 1]");
@@ -93,6 +93,10 @@ void bindExtraction(py::module_& m) {
         o.faintRelative = faintRelative;
         if (!(minEvidence >= 0)) throw InputError("min_evidence must be >= 0");
         o.minEvidence = minEvidence;
+        if (!(continuousFraction > 0 && continuousFraction <= 1)) throw InputError("continuous_fraction must be in (0, 1]");
+        if (!(continuousEvidence >= 0)) throw InputError("continuous_evidence must be >= 0");
+        o.continuousFraction = continuousFraction;
+        o.continuousEvidence = continuousEvidence;
         o.minRelative = minRelative;
         o.minRelativeTrunk = minRelativeTrunk;
         o.profiles.mirrorLimbs = mirrorLimbs;
@@ -122,6 +126,8 @@ void bindExtraction(py::module_& m) {
       py::arg("faint_relative") = ExtractionOptions{}.faintRelative,
       py::arg("min_evidence") = ExtractionOptions{}.minEvidence,
       py::arg("joint_wrap") = EndOptions{}.jointWrapFraction,
+      py::arg("continuous_fraction") = ExtractionOptions{}.continuousFraction,
+      py::arg("continuous_evidence") = ExtractionOptions{}.continuousEvidence,
       "Extract muscles from a character's skin (Yang & Zhang 2006). spacing: metres between cutting planes "
       "(0 = automatic); vertex_mask: #V booleans, extract only there; forced_regions: list of #V masks, one "
       "muscle forced per region; min_confidence: drop weaker muscles; max_per_region: keep the most confident "
@@ -130,7 +136,8 @@ void bindExtraction(py::module_& m) {
       "min_relative, against their Fourier base); mirror_limbs: average mirrored left/right limb profiles (exactly mirrored limbs); weak_fraction: hysteresis, bumps down to this share of the significance threshold "
       "extend muscles (1 = off); faint_relative: fainter bumps (down to half the threshold) extend a muscle only where "
       "they reach this share of its peak significance (0 = off); min_evidence: a muscle's summed bump significance, in "
-      "sections of the default spacing, must reach this (0 = off); joint_wrap: a muscle crossing a joint wraps round it "
+      "sections of the default spacing, must reach this (0 = off); continuous_fraction: a limb muscle that stands out in every plane "
+      "between its ends with at least continuous_evidence needs only this share of min_relative (1 = off); joint_wrap: a muscle crossing a joint wraps round it "
       "on a sphere of this times its mean semi-axis b (0 = straight lines). Returns (muscles, report) where report has per-stage counts, skipped sections "
       "with reasons and timings per stage (seconds).");
 

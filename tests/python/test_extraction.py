@@ -143,3 +143,17 @@ def test_cli_extract_makehuman(tmp_path):
     r = run_cli("extract", shared(MUSCULAR), "-o", str(out), "--no-surfaces")
     assert r.returncode == 0, r.stderr
     assert len(json.loads(out.read_text())["muscles"]) > 0
+
+
+def test_continuous_floor_keeps_the_quadriceps(core):
+    # On the muscular male the quadriceps stand out only 0.061-0.074 of the thigh radius, in every plane of the
+    # front thigh: kept by the continuous floor (0.6 x min_relative), dropped without it (continuous_fraction=1).
+    character = core.load_character(shared(MUSCULAR))
+    default, _ = core.extract_muscles(character, build_surfaces=False)
+    off, report = core.extract_muscles(character, build_surfaces=False, continuous_fraction=1.0)
+    names = {m.name for m in default} - {m.name for m in off}
+    assert len(off) < len(default) and report["dropped_flat"] > 0
+    assert any(n.startswith("upperleg02.L") for n in names) and any(n.startswith("upperleg02.R") for n in names)
+    for bad in (dict(continuous_fraction=0.0), dict(continuous_fraction=1.5), dict(continuous_evidence=-1.0)):
+        with pytest.raises(ValueError, match="continuous"):
+            core.extract_muscles(character, build_surfaces=False, **bad)

@@ -33,6 +33,14 @@ struct LinkOptions {
   double mergeFactor = 0.5;     // fragments of one belly (chains of a family whose centres come within this
                                 // times their larger mean semi-axis a at the same or a neighbouring plane)
                                 // are merged into one chain
+  bool mergeAlternating = true;  // alternating fragments of one belly are merged too: chains of a family that share no
+                                 // plane, alternate (their plane ranges overlap, every link within 1 + maxGap planes of
+                                 // the other chain) and link somewhere (a pair within that reach passes the link test).
+                                 // A belly whose apex alternates between two heads turns more than maxAngle over two
+                                 // links, so the chain's turn limit splits it. Measured on MakeHuman at the default
+                                 // spacing: the calf's gastrocnemius (planes 17, 18, 20 and 19, 22: evidence 5.1 and
+                                 // 2.3) becomes one muscle (evidence 7.4, 4 strong sections), both sides; the neutral
+                                 // body gains its inner upper arms at spacing x 0.925 only (8 against 20)
   double faintBelow = 0.0;      // faint links: real links whose significance is below faintBelow are kept only
   double faintRelative = 0.0;   // where they reach faintRelative x their chain's peak significance (after fragments
                                 // merged; a transition section next to a dropped link goes too); 0 = keep every link
@@ -115,7 +123,23 @@ struct ExtractionOptions {
                                                // their sections' mean radius (a belly is large for its limb; soft
                                                // body contours of thick sections are not); forced ones are kept.
                                                // Measured: synthetic muscles 0.106-0.33, MakeHuman neutral's
-                                               // flattest contours 0.083-0.085 (0 = off)
+                                               // flattest contours 0.083-0.085 (0 = off; continuous chains: continuousFraction)
+  double continuousFraction = 0.6;             // a continuous limb chain needs only this share of minRelative (0.054): its
+  double continuousEvidence = 7.75;            // bumps of at least magnitudeFraction stand out in every plane between its
+                                               // ends, and its evidence (see minEvidence) reaches continuousEvidence. A big
+                                               // belly on a thick limb rounds the whole section, so its relief against the
+                                               // base is small but steady; soft contours of that height come and go along
+                                               // the limb. Measured on MakeHuman, spacing x 0.9-1.1: the muscular male's
+                                               // quadriceps stand out 0.061-0.074 of the thigh's radius over 6-8 consecutive
+                                               // planes (evidence 8.85-10.2; kept at every spacing, both sides); the neutral
+                                               // body's flattest chains that miss minRelative (0.076-0.087) skip 2-4 planes
+                                               // or are short (its only continuous one: evidence 7.25 at x 0.95), so its
+                                               // counts do not change; at x 1.1 a knee-side thigh chain (evidence 8.07 and
+                                               // 8.19, mean height 0.090 and 0.091) is kept on both sides, not one. Works
+                                               // for 0.5-0.67 (0.72 loses the quadriceps at x 0.95 and 1.1) and evidence
+                                               // 7.5-8.0 (7.0 adds the neutral chain; counting strong sections instead, 4
+                                               // gives an unpaired calf at x 1.05 and 5 loses the quadriceps at x 0.95).
+                                               // 1 = off
   double minRelativeTrunk = 0.05;              // the floor for the trunk families instead (abdomen, neck: planes across
                                                // the whole body), whose bumps are measured against the Fourier base
                                                // (trunkHarmonics). Measured on MakeHuman: the muscular male's

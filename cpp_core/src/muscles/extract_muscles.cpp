@@ -72,6 +72,20 @@ void mirrorSectionBumps(SectionWork& w) {
   w = std::move(out);
 }
 
+// True when the chain's links of at least `fraction` of the significance threshold lie in consecutive planes of
+// its family: the belly stands out in every plane between its ends (fainter tail links aside).
+bool continuousChain(const MuscleChain& c, const std::vector<SectionBumps>& sections, double fraction) {
+  std::vector<int> orders;
+  for (const ChainLink& l : c.links)
+    if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size()) &&
+        sections[l.section].significance[l.bump] >= fraction)
+      orders.push_back(sections[l.section].plane.order);
+  std::sort(orders.begin(), orders.end());
+  for (size_t i = 1; i < orders.size(); ++i)
+    if (orders[i] != orders[i - 1] + 1) return false;
+  return !orders.empty();
+}
+
 }  // namespace
 
 ExtractionResult extractMuscles(const Character& character, const ExtractionOptions& options) {
@@ -296,7 +310,10 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       continue;
     }
     const bool trunk = c.family == "abdomen" || c.family == "neck";
-    const double floor = trunk ? options.minRelativeTrunk : options.minRelative;
+    double floor = trunk ? options.minRelativeTrunk : options.minRelative;
+    if (!trunk && options.continuousFraction > 0 && evidence * evidenceScale >= options.continuousEvidence &&
+        continuousChain(c, sections, options.magnitudeFraction))
+      floor *= std::min(options.continuousFraction, 1.0);
     if (floor > 0) {  // the bumps' mean height relative to their sections' size (the faint tail links left out)
       double sum = 0.0;
       int count = 0;

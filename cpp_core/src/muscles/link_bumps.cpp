@@ -2,6 +2,7 @@
 // with transition sections where chains split or merge (the paper's auxiliary transition curve).
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <tuple>
@@ -81,6 +82,50 @@ double meanA(const MuscleChain& c) {
   return c.links.empty() ? 0.0 : s / c.links.size();
 }
 
+// Alternating fragments of one belly (its apex alternates between two heads, so the link test's turn limit
+// splits it into two chains): x and y share no plane, no link of one lies more than 1 + maxGap planes from the
+// other's nearest link, their plane ranges overlap (they alternate, not follow one another), and at least one pair
+// of links of the two within that reach passes the link test.
+bool alternatingFragments(const MuscleChain& x, const MuscleChain& y, const std::vector<SectionBumps>& sections,
+                          const LinkOptions& o) {
+  std::vector<const ChainLink*> lx, ly;
+  for (const ChainLink& l : x.links)
+    if (l.bump >= 0) lx.push_back(&l);
+  for (const ChainLink& l : y.links)
+    if (l.bump >= 0) ly.push_back(&l);
+  if (lx.empty() || ly.empty()) return false;
+  auto orderOf = [&](const ChainLink* l) { return sections[l->section].plane.order; };
+  const int reach = 1 + std::max(0, o.maxGap);
+  bool linked = false;
+  auto covered = [&](const std::vector<const ChainLink*>& from, const std::vector<const ChainLink*>& to) {
+    for (const ChainLink* a : from) {
+      int nearest = std::numeric_limits<int>::max();
+      for (const ChainLink* b : to) {
+        const int d = orderOf(b) - orderOf(a);
+        nearest = std::min(nearest, std::abs(d));
+        if (d == 0) return false;  // a shared plane: two bellies side by side, not fragments
+        if (!linked && std::abs(d) <= reach) {
+          const ChainLink* first = d > 0 ? a : b;
+          const ChainLink* second = d > 0 ? b : a;
+          linked = linkCost(sections[first->section], first->ellipse, sections[second->section], second->ellipse, o) >= 0;
+        }
+      }
+      if (nearest > reach) return false;
+    }
+    return true;
+  };
+  // Alternating, not consecutive: the two chains' plane ranges overlap.
+  auto range = [&](const std::vector<const ChainLink*>& ls) {
+    int lo = std::numeric_limits<int>::max(), hi = std::numeric_limits<int>::min();
+    for (const ChainLink* l : ls) lo = std::min(lo, orderOf(l)), hi = std::max(hi, orderOf(l));
+    return std::make_pair(lo, hi);
+  };
+  const auto [x0, x1] = range(lx);
+  const auto [y0, y1] = range(ly);
+  if (!(std::max(x0, y0) < std::min(x1, y1))) return false;
+  return covered(lx, ly) && covered(ly, lx) && linked;
+}
+
 // Fragments of one belly (the bump stage split it in some sections, a branch rejoined): chains of one
 // family instance whose centres come within mergeFactor x the larger mean a at the same or a neighbouring
 // plane (real links only, not transition sections) become one chain; at a shared plane the two ellipses
@@ -100,6 +145,7 @@ void mergeFragments(std::vector<MuscleChain>& chains, const std::vector<SectionB
             if (lx.bump >= 0 && ly.bump >= 0 && std::abs(orderOf(lx) - orderOf(ly)) <= 1 &&
                 (ellipseCenter3(sections[lx.section], lx.ellipse) - ellipseCenter3(sections[ly.section], ly.ellipse)).norm() <= reach)
               close = true;
+        if (!close && o.mergeAlternating) close = alternatingFragments(x, y, sections, o);
         if (!close) continue;
         std::map<int, ChainLink> byOrder;
         for (const ChainLink& l : x.links) byOrder[orderOf(l)] = l;
