@@ -47,20 +47,35 @@ class LiveRig:
         if list(self.rig.joint_names) != self.joint_names:
             raise ValueError(f"'{arm_obj.name}': the bind record's joints do not match its muscles: bind again")
         self.surface_names = record.get("surfaces", [])
-        self.last_pose = None
+        self.last_pose = None  # the skeleton pose the joints were last written for
+        self.last_with_surfaces = False  # whether the muscle surfaces were written with them
         self.last_surface_pose = None  # baked rigs: the pose the muscle surfaces were last written for
-        # FK offsets: pose_i = pose_parent @ (rest_parent^-1 @ rest_i) @ basis_i (rest_i for a root bone)
-        rest = np.asarray(record["bone_rest"], dtype=np.float64)
-        self.parent_index = [int(p) for p in record["bone_parents"]]
-        self.rest_local = np.array([np.linalg.inv(rest[p]) @ rest[i] if p >= 0 else rest[i]
-                                    for i, p in enumerate(self.parent_index)])
+        # Speed-ups of the frame_change_pre prediction, dropped whenever a prediction turned out wrong (the
+        # post handlers compare it with the evaluated pose, so a stale cache costs a second pass, never
+        # a wrong frame): whether the skeleton is predictable (None = check again) and the PredictionPlan.
+        self.predictable = None
+        self.plan = None
+        self._pose_bone_keys = None
+        self._skeleton_index = None
 
     def skeleton_indices(self, pose_bones):
-        idx = [pose_bones.find(n) for n in self.bone_names]
-        missing = [n for n, i in zip(self.bone_names, idx) if i < 0]
-        if missing:
-            raise ValueError(f"bone '{missing[0]}' was renamed or deleted since the bind: bind again")
-        return np.asarray(idx)
+        """Pose-bone indices of the bind record's skeleton bones (cached while the armature's bone names
+        stay the same); ValueError naming a renamed or deleted bone."""
+        keys = tuple(pose_bones.keys())
+        if keys != self._pose_bone_keys:
+            position = {n: i for i, n in enumerate(keys)}
+            missing = [n for n in self.bone_names if n not in position]
+            if missing:
+                raise ValueError(f"bone '{missing[0]}' was renamed or deleted since the bind: bind again")
+            self._skeleton_index = np.array([position[n] for n in self.bone_names], dtype=np.int64)
+            self._pose_bone_keys = keys
+        return self._skeleton_index
+
+    def forget_prediction(self):
+        """A prediction was wrong (or the pose came from elsewhere): check predictability and rebuild the
+        plan at the next frame."""
+        self.predictable = None
+        self.plan = None
 
 
 def skeleton_character(record):
@@ -149,9 +164,11 @@ def update_armature(arm_obj, depsgraph=None, force=False, surfaces=None):
     when it wrote something."""
     live = live_rig(arm_obj)
     pose = evaluated_pose(arm_obj, live, depsgraph)
-    if not force and same_pose(pose, live.last_pose):
+    surfaces = muscles_visible(arm_obj) if surfaces is None else surfaces
+    if not force and up_to_date(live, pose, surfaces):
         return False
-    write_pose(arm_obj, live, pose, muscles_visible(arm_obj) if surfaces is None else surfaces)
+    write_pose(arm_obj, live, pose, surfaces)
+    live.forget_prediction()  # the skeleton did not move as predicted (IK, constraints, hand posing)
     stats["written"] += 1
     return True
 
@@ -160,11 +177,17 @@ def write_pose(arm_obj, live, pose, with_surfaces):
     """Evaluate the rig for a skeleton pose (#B by 4 by 4) and write the joint bones (and the surfaces)."""
     from . import rig_io
     result = live.rig.evaluate(pose, with_surfaces=with_surfaces)
-    parents = {n: pose[i] for i, n in enumerate(live.bone_names)}
-    rig_io.write_joint_matrices(arm_obj, live.joint_names, result["joint_matrices"], parent_matrices=parents)
+    rig_io.write_joint_matrices(arm_obj, live.joint_names, result["joint_matrices"],
+                                parent_matrices=(live.bone_names, pose))
     if with_surfaces:
         write_surfaces(arm_obj, live, result["surfaces"])
     live.last_pose = pose
+    live.last_with_surfaces = with_surfaces
+
+
+def up_to_date(live, pose, surfaces):
+    """True when the joints (and, when `surfaces`, the muscle surfaces) were last written for this pose."""
+    return same_pose(pose, live.last_pose) and (live.last_with_surfaces or not surfaces)
 
 
 def write_surfaces(arm_obj, live, surfaces):
@@ -183,6 +206,17 @@ def bound_armatures(scene):
 def baked_armatures(scene):
     """Bound armatures whose baked Action plays (live update off): only their muscle surfaces need us."""
     return [o for o in scene.objects if o.type == 'ARMATURE' and o.myoskin.bound and not o.myoskin.live]
+
+
+def split_bound_armatures(scene):
+    """(bound armatures with live update on, bound armatures playing their baked Action), in one pass."""
+    live_on, baked = [], []
+    for o in scene.objects:
+        if o.type == 'ARMATURE':
+            state = o.myoskin
+            if state.bound:
+                (live_on if state.live else baked).append(o)
+    return live_on, baked
 
 
 def update_surfaces(arm_obj, depsgraph=None):
@@ -229,55 +263,94 @@ def _predictable(arm_obj, live):
     return True
 
 
-def _channel(fcurves, pb, path, size, frame):
-    """The F-curve values of one pose-bone channel at `frame` (the current value where a curve is missing)."""
-    current = list(getattr(pb, path))
-    if fcurves is None:
-        return current
-    data_path = f'pose.bones["{pb.name}"].{path}'
-    for k in range(size):
-        fc = fcurves.find(data_path, index=k)
-        if fc is not None and not fc.mute:
-            current[k] = fc.evaluate(frame)
-    return current
+CHANNELS = {"location": 3, "rotation_quaternion": 4, "rotation_euler": 3, "rotation_axis_angle": 4, "scale": 3}
+ROTATION_MODES = {'AXIS_ANGLE': -1, 'QUATERNION': 0, 'XYZ': 1, 'XZY': 2, 'YXZ': 3, 'YZX': 4, 'ZXY': 5, 'ZYX': 6}
+ROTATION_CHANNEL = {'QUATERNION': "rotation_quaternion", 'AXIS_ANGLE': "rotation_axis_angle"}  # else Euler
+
+
+class PredictionPlan:
+    """What predicted_pose reads, found once per Action layout: each skeleton bone's rotation mode and
+    whether it is connected to its parent (no location then) and, per animated channel, the index of its
+    F-curve in the Action. Validated by the Action's identity and its
+    F-curve count; anything else that changes (a curve muted, a rotation mode, an edited curve order) makes
+    the prediction differ from the evaluated pose, and the post handlers then drop the plan."""
+
+    def __init__(self, arm_obj, live, action):
+        from bpy.utils import escape_identifier
+        pose_bones = arm_obj.pose.bones
+        index = live.skeleton_indices(pose_bones)
+        self.action = action.as_pointer() if action is not None else 0
+        self.fcurve_count = len(action.fcurves) if action is not None else 0
+        modes = [pose_bones[int(k)].rotation_mode for k in index]
+        # Blender ignores the location of a bone connected to its parent
+        self.connected = np.array([pose_bones[int(k)].bone.use_connect for k in index], dtype=bool)
+        self.modes = [ROTATION_MODES[m] for m in modes]  # the core's (Blender's) rotation mode codes
+        rotation = [ROTATION_CHANNEL.get(m, "rotation_euler") for m in modes]
+        self.read = ["location", "scale"] + sorted(set(rotation))
+        self.rotation = np.zeros((len(modes), 4))  # filled per frame from the bones' rotation channels
+        self.rotation_rows = [(prop, np.array([i for i, x in enumerate(rotation) if x == prop], dtype=np.int64))
+                              for prop in sorted(set(rotation))]
+        paths = {}
+        for i, name in enumerate(live.bone_names):
+            for prop in self.read:
+                paths[f'pose.bones["{escape_identifier(name)}"].{prop}'] = (i, prop)
+        self.curves = []  # (F-curve index in the Action, channel, bone position, component)
+        if action is not None:
+            for c, fc in enumerate(action.fcurves):
+                hit = paths.get(fc.data_path)
+                if hit is not None and not fc.mute and 0 <= fc.array_index < CHANNELS[hit[1]]:
+                    self.curves.append((c, hit[1], hit[0], fc.array_index))
+
+    def valid_for(self, action):
+        if action is None:
+            return self.action == 0
+        return self.action == action.as_pointer() and self.fcurve_count == len(action.fcurves)
 
 
 def predicted_pose(arm_obj, live, frame):
     """#B by 4 by 4 skeleton pose at `frame` by FK from the Action's F-curves, or None when something else
-    (constraints, IK, drivers, NLA) may drive the skeleton."""
-    from mathutils import Euler, Matrix, Quaternion, Vector
-    if not _predictable(arm_obj, live):
+    (constraints, IK, drivers, NLA) may drive the skeleton. Channels without an F-curve keep their current
+    values; they are read with one foreach_get per channel, the FK runs in the core (pose_from_channels)."""
+    if live.predictable is None:
+        live.predictable = _predictable(arm_obj, live)
+        live.plan = None
+    if not live.predictable:
         return None
     anim = arm_obj.animation_data
-    fcurves = anim.action.fcurves if anim is not None and anim.action is not None else None
+    action = anim.action if anim is not None else None
+    plan = live.plan
+    if plan is None or not plan.valid_for(action):
+        plan = live.plan = PredictionPlan(arm_obj, live, action)
     pose_bones = arm_obj.pose.bones
-    rest = live.rest_local
-    out = np.empty((len(live.bone_names), 4, 4))
-    for i, k in enumerate(live.skeleton_indices(pose_bones)):
-        pb = pose_bones[int(k)]
-        loc = Vector(_channel(fcurves, pb, "location", 3, frame))
-        scale = _channel(fcurves, pb, "scale", 3, frame)
-        mode = pb.rotation_mode
-        if mode == 'QUATERNION':
-            rot = Quaternion(_channel(fcurves, pb, "rotation_quaternion", 4, frame)).normalized().to_matrix()
-        elif mode == 'AXIS_ANGLE':
-            a = _channel(fcurves, pb, "rotation_axis_angle", 4, frame)
-            rot = Matrix.Rotation(a[0], 3, Vector(a[1:])) if Vector(a[1:]).length > 0 else Matrix.Identity(3)
-        else:
-            rot = Euler(_channel(fcurves, pb, "rotation_euler", 3, frame), mode).to_matrix()
-        basis = np.array(Matrix.LocRotScale(loc, rot, Vector(scale)))
-        p = live.parent_index[i]
-        out[i] = (out[p] @ rest[i] if p >= 0 else rest[i]) @ basis
-    return out
+    index = live.skeleton_indices(pose_bones)
+    values = {}
+    for prop in plan.read:
+        flat = np.empty(len(pose_bones) * CHANNELS[prop], dtype=np.float32)
+        pose_bones.foreach_get(prop, flat)
+        values[prop] = flat.reshape(len(pose_bones), -1)[index].astype(np.float64)
+    if plan.curves:
+        fcurves = action.fcurves
+        for c, prop, i, k in plan.curves:
+            values[prop][i, k] = fcurves[c].evaluate(frame)
+    rotation = plan.rotation
+    for prop, where in plan.rotation_rows:
+        rotation[where, :CHANNELS[prop]] = values[prop][where]
+    if plan.connected.any():
+        values["location"][plan.connected] = 0.0
+    return core_loader.core().pose_from_channels(live.character, values["location"], plan.modes, rotation,
+                                                 values["scale"])
 
 
 def predict_armature(arm_obj, frame):
-    """frame_change_pre: write the joints for the predicted pose (True when it could predict)."""
+    """frame_change_pre: write the joints for the predicted pose (True when it could predict; nothing is
+    written when the pose equals the one the joints were last written for)."""
     live = live_rig(arm_obj)
     pose = predicted_pose(arm_obj, live, frame)
     if pose is None:
         return False
-    write_pose(arm_obj, live, pose, muscles_visible(arm_obj))
+    surfaces = muscles_visible(arm_obj)
+    if not up_to_date(live, pose, surfaces):
+        write_pose(arm_obj, live, pose, surfaces)
     stats["predicted"] += 1
     return True
 
@@ -317,7 +390,7 @@ def on_update(scene, depsgraph=None):
     global _busy
     if _busy or not core_loader.available():
         return
-    armatures, baked = bound_armatures(scene), baked_armatures(scene)
+    armatures, baked = split_bound_armatures(scene)
     if not armatures and not baked:
         return
     _busy = True
