@@ -269,11 +269,13 @@ ROTATION_CHANNEL = {'QUATERNION': "rotation_quaternion", 'AXIS_ANGLE': "rotation
 
 
 class PredictionPlan:
-    """What predicted_pose reads, found once per Action layout: each skeleton bone's rotation mode and
-    whether it is connected to its parent (no location then) and, per animated channel, the index of its
-    F-curve in the Action. Validated by the Action's identity and its
-    F-curve count; anything else that changes (a curve muted, a rotation mode, an edited curve order) makes
-    the prediction differ from the evaluated pose, and the post handlers then drop the plan."""
+    """What predicted_pose needs, read once: the skeleton bones' channels as they are now (location, scale,
+    the rotation of each bone's mode as one #B by 4 array; the location of a bone connected to its parent
+    is 0, Blender ignores it), the bones' rotation modes, and per animated channel the index of its F-curve
+    in the Action and where its value goes. Per frame only the F-curves are evaluated. Validated by the
+    Action's identity and its F-curve count; anything else that changes (a channel edited by hand, a curve
+    muted, a rotation mode, the curve order) makes the prediction differ from the evaluated pose, and the
+    post handlers then drop the plan."""
 
     def __init__(self, arm_obj, live, action):
         from bpy.utils import escape_identifier
@@ -281,25 +283,28 @@ class PredictionPlan:
         index = live.skeleton_indices(pose_bones)
         self.action = action.as_pointer() if action is not None else 0
         self.fcurve_count = len(action.fcurves) if action is not None else 0
-        modes = [pose_bones[int(k)].rotation_mode for k in index]
-        # Blender ignores the location of a bone connected to its parent
-        self.connected = np.array([pose_bones[int(k)].bone.use_connect for k in index], dtype=bool)
-        self.modes = [ROTATION_MODES[m] for m in modes]  # the core's (Blender's) rotation mode codes
-        rotation = [ROTATION_CHANNEL.get(m, "rotation_euler") for m in modes]
-        self.read = ["location", "scale"] + sorted(set(rotation))
-        self.rotation = np.zeros((len(modes), 4))  # filled per frame from the bones' rotation channels
-        self.rotation_rows = [(prop, np.array([i for i, x in enumerate(rotation) if x == prop], dtype=np.int64))
-                              for prop in sorted(set(rotation))]
+        bones = [pose_bones[int(k)] for k in index]
+        self.modes = [ROTATION_MODES[pb.rotation_mode] for pb in bones]  # the core's (Blender's) codes
+        rotation = [ROTATION_CHANNEL.get(pb.rotation_mode, "rotation_euler") for pb in bones]
+        self.location = np.array([(0.0, 0.0, 0.0) if pb.bone.use_connect else tuple(pb.location) for pb in bones])
+        self.scale = np.array([tuple(pb.scale) for pb in bones])
+        self.rotation = np.zeros((len(bones), 4))
+        for i, (pb, prop) in enumerate(zip(bones, rotation)):
+            self.rotation[i, :CHANNELS[prop]] = tuple(getattr(pb, prop))
+        target = {"location": self.location, "scale": self.scale}
         paths = {}
-        for i, name in enumerate(live.bone_names):
-            for prop in self.read:
-                paths[f'pose.bones["{escape_identifier(name)}"].{prop}'] = (i, prop)
-        self.curves = []  # (F-curve index in the Action, channel, bone position, component)
+        for i, (pb, prop) in enumerate(zip(bones, rotation)):
+            path = f'pose.bones["{escape_identifier(pb.name)}"].'
+            if not pb.bone.use_connect:
+                paths[path + "location"] = (i, "location")
+            paths[path + "scale"] = (i, "scale")
+            paths[path + prop] = (i, prop)
+        self.curves = []  # (F-curve index in the Action, target array, bone position, component)
         if action is not None:
             for c, fc in enumerate(action.fcurves):
                 hit = paths.get(fc.data_path)
                 if hit is not None and not fc.mute and 0 <= fc.array_index < CHANNELS[hit[1]]:
-                    self.curves.append((c, hit[1], hit[0], fc.array_index))
+                    self.curves.append((c, target.get(hit[1], self.rotation), hit[0], fc.array_index))
 
     def valid_for(self, action):
         if action is None:
@@ -309,8 +314,8 @@ class PredictionPlan:
 
 def predicted_pose(arm_obj, live, frame):
     """#B by 4 by 4 skeleton pose at `frame` by FK from the Action's F-curves, or None when something else
-    (constraints, IK, drivers, NLA) may drive the skeleton. Channels without an F-curve keep their current
-    values; they are read with one foreach_get per channel, the FK runs in the core (pose_from_channels)."""
+    (constraints, IK, drivers, NLA) may drive the skeleton. Channels without an F-curve keep their values
+    (as read into the PredictionPlan); the FK runs in the core (pose_from_channels)."""
     if live.predictable is None:
         live.predictable = _predictable(arm_obj, live)
         live.plan = None
@@ -321,24 +326,12 @@ def predicted_pose(arm_obj, live, frame):
     plan = live.plan
     if plan is None or not plan.valid_for(action):
         plan = live.plan = PredictionPlan(arm_obj, live, action)
-    pose_bones = arm_obj.pose.bones
-    index = live.skeleton_indices(pose_bones)
-    values = {}
-    for prop in plan.read:
-        flat = np.empty(len(pose_bones) * CHANNELS[prop], dtype=np.float32)
-        pose_bones.foreach_get(prop, flat)
-        values[prop] = flat.reshape(len(pose_bones), -1)[index].astype(np.float64)
     if plan.curves:
         fcurves = action.fcurves
-        for c, prop, i, k in plan.curves:
-            values[prop][i, k] = fcurves[c].evaluate(frame)
-    rotation = plan.rotation
-    for prop, where in plan.rotation_rows:
-        rotation[where, :CHANNELS[prop]] = values[prop][where]
-    if plan.connected.any():
-        values["location"][plan.connected] = 0.0
-    return core_loader.core().pose_from_channels(live.character, values["location"], plan.modes, rotation,
-                                                 values["scale"])
+        for c, values, i, k in plan.curves:
+            values[i, k] = fcurves[c].evaluate(frame)
+    return core_loader.core().pose_from_channels(live.character, plan.location, plan.modes, plan.rotation,
+                                                 plan.scale)
 
 
 def predict_armature(arm_obj, frame):

@@ -262,6 +262,9 @@ def forget_structures():
     _structure_cache.clear()
 
 
+_CHANNEL_SIZES = (("location", 3), ("rotation_quaternion", 4), ("scale", 3))
+
+
 class _JointStructure:
     """One armature layout's joint bookkeeping: bone indices of the joints and of their parents (-1 = none),
     parent names, pose-bone indices of the joints; plus what only the rest pose decides (inv(rest_joint) @
@@ -280,18 +283,24 @@ class _JointStructure:
         self.parent_index = np.array([position[p] if p else -1 for p in self.parent_names], dtype=np.int64)
         pose_position = {n: i for i, n in enumerate(armature_obj.pose.bones.keys())}
         self.pose_index = np.array([pose_position[n] for n in names], dtype=np.int64)
-        self.rest = None
+        self.rest_flat = None  # Bone.matrix_local of every bone as last read (foreach_get layout)
         self.rest_part = None
         self.given = {}
+        count = len(armature_obj.pose.bones)
+        self.buffers = {prop: np.empty(count * n, dtype=np.float32) for prop, n in _CHANNEL_SIZES}
 
-    def rest_to_parent(self, rest):
-        """#J by 4 by 4 inv(rest_joint) @ rest_parent (rest_parent = identity for a joint without a parent)."""
-        if self.rest is None or not np.array_equal(rest, self.rest):
+    def rest_to_parent(self, bones):
+        """#J by 4 by 4 inv(rest_joint) @ rest_parent (rest_parent = identity for a joint without a parent),
+        recomputed when the bones' rest matrices changed."""
+        flat = np.empty(len(bones) * 16, dtype=np.float32)
+        bones.foreach_get("matrix_local", flat)
+        if self.rest_flat is None or not np.array_equal(flat, self.rest_flat):
+            rest = flat.reshape(-1, 4, 4).transpose(0, 2, 1).astype(np.float64)
             parent_rest = np.tile(np.eye(4), (len(self.index), 1, 1))
             has_parent = self.parent_index >= 0
             parent_rest[has_parent] = rest[self.parent_index[has_parent]]
             self.rest_part = np.linalg.inv(rest[self.index]) @ parent_rest
-            self.rest = rest
+            self.rest_flat = flat
         return self.rest_part
 
     def given_positions(self, given_names):
@@ -359,19 +368,21 @@ def write_joint_matrices(armature_obj, joint_names, joint_matrices, parent_matri
     if matrices.ndim != 3 or matrices.shape[1:] != (4, 4) or matrices.shape[0] != len(names):
         raise ValueError(f"joint_matrices must be {len(names)} by 4 by 4, got shape {matrices.shape}")
     st = _joint_structure(armature_obj, names)
-    rest_part = st.rest_to_parent(blender_io.bone_rest_matrices(armature_obj.data.bones))
-    location, quaternion, scale = core_loader.core().pose_channels(
-        rest_part, _parent_poses(armature_obj, st, parent_matrices), matrices)
+    channels = core_loader.core().pose_channels(st.rest_to_parent(armature_obj.data.bones),
+                                                _parent_poses(armature_obj, st, parent_matrices), matrices)
     pose_bones = armature_obj.pose.bones
-    fast = np.array([pose_bones[int(i)].rotation_mode == 'QUATERNION' for i in st.pose_index], dtype=bool)
-    if fast.any():
-        rows = st.pose_index[fast]
-        for prop, values in (("location", location), ("rotation_quaternion", quaternion), ("scale", scale)):
-            flat = np.empty(len(pose_bones) * values.shape[1], dtype=np.float32)
+    modes = [pose_bones[int(i)].rotation_mode for i in st.pose_index]
+    fast = None if all(m == 'QUATERNION' for m in modes) else np.array([m == 'QUATERNION' for m in modes])
+    rows = st.pose_index if fast is None else st.pose_index[fast]
+    if len(rows):
+        for (prop, size), values in zip(_CHANNEL_SIZES, channels):
+            flat = st.buffers[prop]
             pose_bones.foreach_get(prop, flat)
-            flat.reshape(len(pose_bones), -1)[rows] = values[fast]
+            flat.reshape(-1, size)[rows] = values if fast is None else values[fast]
             pose_bones.foreach_set(prop, flat)
-    for j in np.flatnonzero(~fast):
-        pose_bones[int(st.pose_index[j])].matrix_basis = Matrix.LocRotScale(
-            Vector(location[j]), Quaternion(quaternion[j]), Vector(scale[j]))
+    if fast is not None:
+        location, quaternion, scale = channels
+        for j in np.flatnonzero(~fast):
+            pose_bones[int(st.pose_index[j])].matrix_basis = Matrix.LocRotScale(
+                Vector(location[j]), Quaternion(quaternion[j]), Vector(scale[j]))
     armature_obj.update_tag()

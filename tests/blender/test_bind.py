@@ -444,6 +444,15 @@ def test_fk_playback_needs_one_evaluation_ik_is_corrected():
         scene.frame_set(frame)
         assert np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max() < 1e-5
     assert stats["predicted"] - before["predicted"] == 8 and stats["written"] == before["written"], stats
+    # a bone without F-curves posed by hand between frames: caught in that frame, predicted again after
+    hand = arm.pose.bones["hand"]
+    hand.rotation_mode = 'QUATERNION'
+    hand.rotation_quaternion = (0.9, 0.3, 0.0, 0.1)
+    before = dict(stats)
+    for frame in (5, 6):
+        scene.frame_set(frame)
+        assert np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max() < 1e-5
+    assert stats["written"] - before["written"] == 1 and stats["predicted"] - before["predicted"] == 2, stats
     # an IK chain whose target is animated
     target = bpy.data.objects.new("ik_target", None)
     scene.collection.objects.link(target)
