@@ -199,15 +199,6 @@ def write_surfaces(arm_obj, live, surfaces):
         obj.data.update()
 
 
-def bound_armatures(scene):
-    return [o for o in scene.objects if o.type == 'ARMATURE' and o.myoskin.bound and o.myoskin.live]
-
-
-def baked_armatures(scene):
-    """Bound armatures whose baked Action plays (live update off): only their muscle surfaces need us."""
-    return [o for o in scene.objects if o.type == 'ARMATURE' and o.myoskin.bound and not o.myoskin.live]
-
-
 def split_bound_armatures(scene):
     """(bound armatures with live update on, bound armatures playing their baked Action), in one pass."""
     live_on, baked = [], []
@@ -358,12 +349,20 @@ def stop_live(arm_obj, error):
         arm_obj.myoskin["live"] = False
 
 
+# The bound armatures found by the last frame_change_pre, for the frame_change_post of the same frame change
+# (scene pointer, frame, live-update armature names, baked armature names); used once, then cleared.
+_frame_armatures = None
+
+
 @persistent
 def on_frame_change_pre(scene, depsgraph=None):
-    global _busy
+    global _busy, _frame_armatures
+    _frame_armatures = None
     if _busy or not core_loader.available():
         return
-    armatures = bound_armatures(scene)
+    armatures, baked = split_bound_armatures(scene)
+    _frame_armatures = (scene.as_pointer(), scene.frame_current_final, [a.name for a in armatures],
+                        [a.name for a in baked])
     if not armatures:
         return
     _busy = True
@@ -378,13 +377,27 @@ def on_frame_change_pre(scene, depsgraph=None):
 
 
 @persistent
+def on_frame_change_post(scene, depsgraph=None):
+    """frame_change_post: on_update for the armatures the frame_change_pre of this frame change found."""
+    global _frame_armatures
+    found, _frame_armatures = _frame_armatures, None
+    if found is not None and found[0] == scene.as_pointer() and found[1] == scene.frame_current_final:
+        objects = bpy.data.objects
+        lists = tuple([o for o in (objects.get(n) for n in names) if o is not None] for names in found[2:])
+        update_all(scene, depsgraph, *lists)
+    else:
+        on_update(scene, depsgraph)
+
+
+@persistent
 def on_update(scene, depsgraph=None):
-    """frame_change_post / depsgraph_update_post: re-pose every bound armature whose skeleton moved."""
+    """depsgraph_update_post (and frame_change_post): re-pose every bound armature whose skeleton moved."""
+    update_all(scene, depsgraph, *split_bound_armatures(scene))
+
+
+def update_all(scene, depsgraph, armatures, baked):
     global _busy
-    if _busy or not core_loader.available():
-        return
-    armatures, baked = split_bound_armatures(scene)
-    if not armatures and not baked:
+    if _busy or not core_loader.available() or not (armatures or baked):
         return
     _busy = True
     try:
@@ -435,7 +448,7 @@ def on_reload(*_args):
 
 def _handlers():
     h = bpy.app.handlers
-    return ((h.frame_change_pre, on_frame_change_pre), (h.frame_change_post, on_update),
+    return ((h.frame_change_pre, on_frame_change_pre), (h.frame_change_post, on_frame_change_post),
             (h.depsgraph_update_post, on_update), (h.load_post, on_reload), (h.undo_post, on_reload),
             (h.redo_post, on_reload))
 
