@@ -4,13 +4,16 @@ follow, exactly as the core computes them.
 
 Route (measured by benchmarks/bench_blender_playback.py, README "Live update"):
 1. `frame_change_pre` predicts the skeleton's pose at the new frame from the Action's F-curves (plain FK in
-   numpy) when nothing else drives the skeleton (no bone constraints, drivers or NLA), and writes the
-   joints before Blender evaluates: one evaluation per frame, the cost of the plain Armature modifier.
+   the core, `pose_from_channels`) when nothing else drives the skeleton (no bone constraints, drivers or
+   NLA), and writes the joints before Blender evaluates: one evaluation per frame. What the prediction
+   needs (predictability, the F-curve indices, the channels without F-curves) is cached in a
+   PredictionPlan, so a frame costs the F-curve evaluations, two core calls and three foreach_set.
 2. `frame_change_post` + `depsgraph_update_post` read the skeleton's pose from the EVALUATED armature of
    the depsgraph they are given (IK, constraints and drivers applied). When it equals the prediction (to
-   1e-6) nothing more happens; otherwise (IK, constraints, hand posing) they evaluate the core's MuscleRig,
-   write the joints with one foreach_set and tag the armature, and Blender's second evaluation pass in the
-   same frame_set / update re-skins with the new joints: exact, no one-frame lag, two evaluations.
+   1e-6) nothing more happens; otherwise (IK, constraints, hand posing, a stale plan) they drop the plan,
+   evaluate the core's MuscleRig, write the joints and tag the armature, and Blender's second evaluation
+   pass in the same frame_set / update re-skins with the new joints: exact, no one-frame lag, two
+   evaluations. So a cache can only cost time, never a wrong frame.
 The handlers write ORIGINAL data, so every depsgraph (viewport, F12 / Cycles render with
 render.use_lock_interface on) sees the same joints.
 
@@ -392,10 +395,13 @@ def on_frame_change_post(scene, depsgraph=None):
 @persistent
 def on_update(scene, depsgraph=None):
     """depsgraph_update_post (and frame_change_post): re-pose every bound armature whose skeleton moved."""
-    update_all(scene, depsgraph, *split_bound_armatures(scene))
+    if not _busy and core_loader.available():
+        update_all(scene, depsgraph, *split_bound_armatures(scene))
 
 
 def update_all(scene, depsgraph, armatures, baked):
+    """The post handlers' work: live armatures re-posed from the evaluated skeleton when it moved other
+    than predicted, baked ones get their muscle surfaces."""
     global _busy
     if _busy or not core_loader.available() or not (armatures or baked):
         return
