@@ -99,6 +99,69 @@ void bindDeformation(py::module_& m) {
       py::arg("character"), py::arg("rotations"),
       "Forward kinematics: rotations #B by 4 quaternions (w, x, y, z) about each bone's head in its rest frame "
       "(Blender's rotation_quaternion) -> #B by 4 by 4 posed matrices.");
+  m.def(
+      "pose_from_channels",
+      [](const Character& c, const Points& location, const std::vector<int>& modes,
+         const Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>& rotation, const Points& scale) {
+        const Eigen::Index nb = c.skeleton.numBones();
+        if (location.rows() != nb || rotation.rows() != nb || scale.rows() != nb ||
+            static_cast<Eigen::Index>(modes.size()) != nb)
+          throw InputError("pose_from_channels: need " + std::to_string(nb) + " rows of location (3), modes, " +
+                           "rotation (4) and scale (3), got " + std::to_string(location.rows()) + ", " +
+                           std::to_string(modes.size()) + ", " + std::to_string(rotation.rows()) + ", " +
+                           std::to_string(scale.rows()));
+        std::vector<BoneChannels> channels(nb);
+        for (Eigen::Index b = 0; b < nb; ++b) {
+          if (modes[b] < -1 || modes[b] > 6)
+            throw InputError("pose_from_channels: bone '" + c.skeleton.bones[b].name + "' has rotation mode " +
+                             std::to_string(modes[b]) + " (use -1 axis-angle, 0 quaternion, 1-6 Euler XYZ..ZYX)");
+          channels[b].location = location.row(b).transpose();
+          channels[b].mode = static_cast<RotationMode>(modes[b]);
+          channels[b].rotation = rotation.row(b).transpose();
+          channels[b].scale = scale.row(b).transpose();
+        }
+        return matricesToArray(poseFromChannels(c.skeleton, channels).matrices);
+      },
+      py::arg("character"), py::arg("location"), py::arg("modes"), py::arg("rotation"), py::arg("scale"),
+      "Forward kinematics from Blender's pose-bone channels (full inheritance): location #B by 3, modes #B "
+      "(Blender's rotation_mode codes: -1 axis-angle, 0 quaternion, 1-6 Euler XYZ, XZY, YXZ, YZX, ZXY, ZYX), "
+      "rotation #B by 4 (quaternion w, x, y, z / angle, axis / Euler x, y, z, unused), scale #B by 3 -> #B by "
+      "4 by 4 posed matrices (PoseBone.matrix, armature space).");
+  m.def(
+      "pose_channels",
+      [](const py::array_t<double, py::array::c_style | py::array::forcecast>& restToParent,
+         const py::array_t<double, py::array::c_style | py::array::forcecast>& parentPose,
+         const py::array_t<double, py::array::c_style | py::array::forcecast>& matrices) {
+        const char* labels[3] = {"rest_to_parent", "parent_pose", "matrices"};
+        const py::array_t<double, py::array::c_style | py::array::forcecast>* in[3] = {&restToParent, &parentPose,
+                                                                                        &matrices};
+        const py::ssize_t n = matrices.ndim() == 3 ? matrices.shape(0) : -1;
+        for (int a = 0; a < 3; ++a)
+          if (in[a]->ndim() != 3 || in[a]->shape(0) != n || in[a]->shape(1) != 4 || in[a]->shape(2) != 4)
+            throw InputError(std::string("pose_channels: ") + labels[a] + " must be #J by 4 by 4 like matrices");
+        py::array_t<double> location({n, py::ssize_t(3)}), quaternion({n, py::ssize_t(4)}), scale({n, py::ssize_t(3)});
+        auto loc = location.mutable_unchecked<2>();
+        auto quat = quaternion.mutable_unchecked<2>();
+        auto size = scale.mutable_unchecked<2>();
+        for (py::ssize_t j = 0; j < n; ++j) {
+          Mat4 m[3];
+          for (int a = 0; a < 3; ++a) {
+            m[a] = Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(in[a]->data(j, 0, 0));
+            if (!m[a].allFinite())
+              throw InputError(std::string("pose_channels: ") + labels[a] + " " + std::to_string(j) +
+                               " has a NaN or infinite value");
+          }
+          const BoneChannels c = channelsFromBasis(m[0] * m[1].inverse() * m[2]);
+          for (int k = 0; k < 3; ++k) loc(j, k) = c.location[k], size(j, k) = c.scale[k];
+          for (int k = 0; k < 4; ++k) quat(j, k) = c.rotation[k];
+        }
+        return py::make_tuple(location, quaternion, scale);
+      },
+      py::arg("rest_to_parent"), py::arg("parent_pose"), py::arg("matrices"),
+      "Quaternion-mode pose channels that give bone j the posed matrix matrices[j] (#J by 4 by 4): basis = "
+      "rest_to_parent[j] @ inv(parent_pose[j]) @ matrices[j] (rest_to_parent = inv(rest_j) @ rest_parent, "
+      "Blender's full inheritance), decomposed like PoseBone.matrix_basis -> (location #J by 3, quaternion #J "
+      "by 4 (w, x, y, z), scale #J by 3).");
 }
 
 }  // namespace myoskin::python

@@ -172,7 +172,8 @@ void bindSkinning(py::module_& m) {
   m.def(
       "hybrid_weights",
       [](const Character& c, const PyMuscleRig& rig, double dominance, const std::map<std::string, double>& perMuscle,
-         int maxInfluences, double fullDistance, double falloffDistance, int smoothingIterations, double endTaper) {
+         int maxInfluences, double fullDistance, double falloffDistance, int smoothingIterations, double endTaper,
+         double minWeight) {
         if (!c.hasWeights()) throw InputError("hybrid_weights: character '" + c.name + "' has no skin weights");
         if (rig.skeleton().numBones() != c.skeleton.numBones())
           throw InputError("hybrid_weights: the rig has " + std::to_string(rig.skeleton().numBones()) +
@@ -185,6 +186,7 @@ void bindSkinning(py::module_& m) {
         o.falloffDistance = falloffDistance;
         o.smoothingIterations = smoothingIterations;
         o.endTaper = endTaper;
+        o.minWeight = minWeight;
         SkinWeights w;
         {
           py::gil_scoped_release release;
@@ -199,9 +201,11 @@ void bindSkinning(py::module_& m) {
       py::arg("falloff_distance") = HybridWeightOptions{}.falloffDistance,
       py::arg("smoothing_iterations") = HybridWeightOptions{}.smoothingIterations,
       py::arg("end_taper") = HybridWeightOptions{}.endTaper,
+      py::arg("min_weight") = HybridWeightOptions{}.minWeight,
       "Combined weights (joints #V by K over [0, #B + #J), weights #V by K; rows sum to 1) from the "
       "character's skeleton weights and the rig's muscles: distance to each muscle's surface and side, "
-      "smoothed, split between neighbouring muscle joints; dominance 0 gives the skeleton weights.");
+      "smoothed, split between neighbouring muscle joints; muscle weights below min_weight go back to the "
+      "bones (continuous ramp); dominance 0 gives the skeleton weights.");
 
   // ==========================================================================
   // Quality measures

@@ -4,13 +4,16 @@ follow, exactly as the core computes them.
 
 Route (measured by benchmarks/bench_blender_playback.py, README "Live update"):
 1. `frame_change_pre` predicts the skeleton's pose at the new frame from the Action's F-curves (plain FK in
-   numpy) when nothing else drives the skeleton (no bone constraints, drivers or NLA), and writes the
-   joints before Blender evaluates: one evaluation per frame, the cost of the plain Armature modifier.
+   the core, `pose_from_channels`) when nothing else drives the skeleton (no bone constraints, drivers or
+   NLA), and writes the joints before Blender evaluates: one evaluation per frame. What the prediction
+   needs (predictability, the F-curve indices, the channels without F-curves) is cached in a
+   PredictionPlan, so a frame costs the F-curve evaluations, two core calls and three foreach_set.
 2. `frame_change_post` + `depsgraph_update_post` read the skeleton's pose from the EVALUATED armature of
    the depsgraph they are given (IK, constraints and drivers applied). When it equals the prediction (to
-   1e-6) nothing more happens; otherwise (IK, constraints, hand posing) they evaluate the core's MuscleRig,
-   write the joints with one foreach_set and tag the armature, and Blender's second evaluation pass in the
-   same frame_set / update re-skins with the new joints: exact, no one-frame lag, two evaluations.
+   1e-6) nothing more happens; otherwise (IK, constraints, hand posing, a stale plan) they drop the plan,
+   evaluate the core's MuscleRig, write the joints and tag the armature, and Blender's second evaluation
+   pass in the same frame_set / update re-skins with the new joints: exact, no one-frame lag, two
+   evaluations. So a cache can only cost time, never a wrong frame.
 The handlers write ORIGINAL data, so every depsgraph (viewport, F12 / Cycles render with
 render.use_lock_interface on) sees the same joints.
 
@@ -47,20 +50,35 @@ class LiveRig:
         if list(self.rig.joint_names) != self.joint_names:
             raise ValueError(f"'{arm_obj.name}': the bind record's joints do not match its muscles: bind again")
         self.surface_names = record.get("surfaces", [])
-        self.last_pose = None
+        self.last_pose = None  # the skeleton pose the joints were last written for
+        self.last_with_surfaces = False  # whether the muscle surfaces were written with them
         self.last_surface_pose = None  # baked rigs: the pose the muscle surfaces were last written for
-        # FK offsets: pose_i = pose_parent @ (rest_parent^-1 @ rest_i) @ basis_i (rest_i for a root bone)
-        rest = np.asarray(record["bone_rest"], dtype=np.float64)
-        self.parent_index = [int(p) for p in record["bone_parents"]]
-        self.rest_local = np.array([np.linalg.inv(rest[p]) @ rest[i] if p >= 0 else rest[i]
-                                    for i, p in enumerate(self.parent_index)])
+        # Speed-ups of the frame_change_pre prediction, dropped whenever a prediction turned out wrong (the
+        # post handlers compare it with the evaluated pose, so a stale cache costs a second pass, never
+        # a wrong frame): whether the skeleton is predictable (None = check again) and the PredictionPlan.
+        self.predictable = None
+        self.plan = None
+        self._pose_bone_keys = None
+        self._skeleton_index = None
 
     def skeleton_indices(self, pose_bones):
-        idx = [pose_bones.find(n) for n in self.bone_names]
-        missing = [n for n, i in zip(self.bone_names, idx) if i < 0]
-        if missing:
-            raise ValueError(f"bone '{missing[0]}' was renamed or deleted since the bind: bind again")
-        return np.asarray(idx)
+        """Pose-bone indices of the bind record's skeleton bones (cached while the armature's bone names
+        stay the same); ValueError naming a renamed or deleted bone."""
+        keys = tuple(pose_bones.keys())
+        if keys != self._pose_bone_keys:
+            position = {n: i for i, n in enumerate(keys)}
+            missing = [n for n in self.bone_names if n not in position]
+            if missing:
+                raise ValueError(f"bone '{missing[0]}' was renamed or deleted since the bind: bind again")
+            self._skeleton_index = np.array([position[n] for n in self.bone_names], dtype=np.int64)
+            self._pose_bone_keys = keys
+        return self._skeleton_index
+
+    def forget_prediction(self):
+        """A prediction was wrong (or the pose came from elsewhere): check predictability and rebuild the
+        plan at the next frame."""
+        self.predictable = None
+        self.plan = None
 
 
 def skeleton_character(record):
@@ -149,9 +167,11 @@ def update_armature(arm_obj, depsgraph=None, force=False, surfaces=None):
     when it wrote something."""
     live = live_rig(arm_obj)
     pose = evaluated_pose(arm_obj, live, depsgraph)
-    if not force and same_pose(pose, live.last_pose):
+    surfaces = muscles_visible(arm_obj) if surfaces is None else surfaces
+    if not force and up_to_date(live, pose, surfaces):
         return False
-    write_pose(arm_obj, live, pose, muscles_visible(arm_obj) if surfaces is None else surfaces)
+    write_pose(arm_obj, live, pose, surfaces)
+    live.forget_prediction()  # the skeleton did not move as predicted (IK, constraints, hand posing)
     stats["written"] += 1
     return True
 
@@ -160,11 +180,17 @@ def write_pose(arm_obj, live, pose, with_surfaces):
     """Evaluate the rig for a skeleton pose (#B by 4 by 4) and write the joint bones (and the surfaces)."""
     from . import rig_io
     result = live.rig.evaluate(pose, with_surfaces=with_surfaces)
-    parents = {n: pose[i] for i, n in enumerate(live.bone_names)}
-    rig_io.write_joint_matrices(arm_obj, live.joint_names, result["joint_matrices"], parent_matrices=parents)
+    rig_io.write_joint_matrices(arm_obj, live.joint_names, result["joint_matrices"],
+                                parent_matrices=(live.bone_names, pose))
     if with_surfaces:
         write_surfaces(arm_obj, live, result["surfaces"])
     live.last_pose = pose
+    live.last_with_surfaces = with_surfaces
+
+
+def up_to_date(live, pose, surfaces):
+    """True when the joints (and, when `surfaces`, the muscle surfaces) were last written for this pose."""
+    return same_pose(pose, live.last_pose) and (live.last_with_surfaces or not surfaces)
 
 
 def write_surfaces(arm_obj, live, surfaces):
@@ -176,13 +202,15 @@ def write_surfaces(arm_obj, live, surfaces):
         obj.data.update()
 
 
-def bound_armatures(scene):
-    return [o for o in scene.objects if o.type == 'ARMATURE' and o.myoskin.bound and o.myoskin.live]
-
-
-def baked_armatures(scene):
-    """Bound armatures whose baked Action plays (live update off): only their muscle surfaces need us."""
-    return [o for o in scene.objects if o.type == 'ARMATURE' and o.myoskin.bound and not o.myoskin.live]
+def split_bound_armatures(scene):
+    """(bound armatures with live update on, bound armatures playing their baked Action), in one pass."""
+    live_on, baked = [], []
+    for o in scene.objects:
+        if o.type == 'ARMATURE':
+            state = o.myoskin
+            if state.bound:
+                (live_on if state.live else baked).append(o)
+    return live_on, baked
 
 
 def update_surfaces(arm_obj, depsgraph=None):
@@ -229,55 +257,87 @@ def _predictable(arm_obj, live):
     return True
 
 
-def _channel(fcurves, pb, path, size, frame):
-    """The F-curve values of one pose-bone channel at `frame` (the current value where a curve is missing)."""
-    current = list(getattr(pb, path))
-    if fcurves is None:
-        return current
-    data_path = f'pose.bones["{pb.name}"].{path}'
-    for k in range(size):
-        fc = fcurves.find(data_path, index=k)
-        if fc is not None and not fc.mute:
-            current[k] = fc.evaluate(frame)
-    return current
+CHANNELS = {"location": 3, "rotation_quaternion": 4, "rotation_euler": 3, "rotation_axis_angle": 4, "scale": 3}
+ROTATION_MODES = {'AXIS_ANGLE': -1, 'QUATERNION': 0, 'XYZ': 1, 'XZY': 2, 'YXZ': 3, 'YZX': 4, 'ZXY': 5, 'ZYX': 6}
+ROTATION_CHANNEL = {'QUATERNION': "rotation_quaternion", 'AXIS_ANGLE': "rotation_axis_angle"}  # else Euler
+
+
+class PredictionPlan:
+    """What predicted_pose needs, read once: the skeleton bones' channels as they are now (location, scale,
+    the rotation of each bone's mode as one #B by 4 array; the location of a bone connected to its parent
+    is 0, Blender ignores it), the bones' rotation modes, and per animated channel the index of its F-curve
+    in the Action and where its value goes. Per frame only the F-curves are evaluated. Validated by the
+    Action's identity and its F-curve count; anything else that changes (a channel edited by hand, a curve
+    muted, a rotation mode, the curve order) makes the prediction differ from the evaluated pose, and the
+    post handlers then drop the plan."""
+
+    def __init__(self, arm_obj, live, action):
+        from bpy.utils import escape_identifier
+        pose_bones = arm_obj.pose.bones
+        index = live.skeleton_indices(pose_bones)
+        self.action = action.as_pointer() if action is not None else 0
+        self.fcurve_count = len(action.fcurves) if action is not None else 0
+        bones = [pose_bones[int(k)] for k in index]
+        self.modes = [ROTATION_MODES[pb.rotation_mode] for pb in bones]  # the core's (Blender's) codes
+        rotation = [ROTATION_CHANNEL.get(pb.rotation_mode, "rotation_euler") for pb in bones]
+        self.location = np.array([(0.0, 0.0, 0.0) if pb.bone.use_connect else tuple(pb.location) for pb in bones])
+        self.scale = np.array([tuple(pb.scale) for pb in bones])
+        self.rotation = np.zeros((len(bones), 4))
+        for i, (pb, prop) in enumerate(zip(bones, rotation)):
+            self.rotation[i, :CHANNELS[prop]] = tuple(getattr(pb, prop))
+        target = {"location": self.location, "scale": self.scale}
+        paths = {}
+        for i, (pb, prop) in enumerate(zip(bones, rotation)):
+            path = f'pose.bones["{escape_identifier(pb.name)}"].'
+            if not pb.bone.use_connect:
+                paths[path + "location"] = (i, "location")
+            paths[path + "scale"] = (i, "scale")
+            paths[path + prop] = (i, prop)
+        self.curves = []  # (F-curve index in the Action, target array, bone position, component)
+        if action is not None:
+            for c, fc in enumerate(action.fcurves):
+                hit = paths.get(fc.data_path)
+                if hit is not None and not fc.mute and 0 <= fc.array_index < CHANNELS[hit[1]]:
+                    self.curves.append((c, target.get(hit[1], self.rotation), hit[0], fc.array_index))
+
+    def valid_for(self, action):
+        if action is None:
+            return self.action == 0
+        return self.action == action.as_pointer() and self.fcurve_count == len(action.fcurves)
 
 
 def predicted_pose(arm_obj, live, frame):
     """#B by 4 by 4 skeleton pose at `frame` by FK from the Action's F-curves, or None when something else
-    (constraints, IK, drivers, NLA) may drive the skeleton."""
-    from mathutils import Euler, Matrix, Quaternion, Vector
-    if not _predictable(arm_obj, live):
+    (constraints, IK, drivers, NLA) may drive the skeleton. Channels without an F-curve keep their values
+    (as read into the PredictionPlan); the FK runs in the core (pose_from_channels)."""
+    if live.predictable is None:
+        live.predictable = _predictable(arm_obj, live)
+        live.plan = None
+    if not live.predictable:
         return None
     anim = arm_obj.animation_data
-    fcurves = anim.action.fcurves if anim is not None and anim.action is not None else None
-    pose_bones = arm_obj.pose.bones
-    rest = live.rest_local
-    out = np.empty((len(live.bone_names), 4, 4))
-    for i, k in enumerate(live.skeleton_indices(pose_bones)):
-        pb = pose_bones[int(k)]
-        loc = Vector(_channel(fcurves, pb, "location", 3, frame))
-        scale = _channel(fcurves, pb, "scale", 3, frame)
-        mode = pb.rotation_mode
-        if mode == 'QUATERNION':
-            rot = Quaternion(_channel(fcurves, pb, "rotation_quaternion", 4, frame)).normalized().to_matrix()
-        elif mode == 'AXIS_ANGLE':
-            a = _channel(fcurves, pb, "rotation_axis_angle", 4, frame)
-            rot = Matrix.Rotation(a[0], 3, Vector(a[1:])) if Vector(a[1:]).length > 0 else Matrix.Identity(3)
-        else:
-            rot = Euler(_channel(fcurves, pb, "rotation_euler", 3, frame), mode).to_matrix()
-        basis = np.array(Matrix.LocRotScale(loc, rot, Vector(scale)))
-        p = live.parent_index[i]
-        out[i] = (out[p] @ rest[i] if p >= 0 else rest[i]) @ basis
-    return out
+    action = anim.action if anim is not None else None
+    plan = live.plan
+    if plan is None or not plan.valid_for(action):
+        plan = live.plan = PredictionPlan(arm_obj, live, action)
+    if plan.curves:
+        fcurves = action.fcurves
+        for c, values, i, k in plan.curves:
+            values[i, k] = fcurves[c].evaluate(frame)
+    return core_loader.core().pose_from_channels(live.character, plan.location, plan.modes, plan.rotation,
+                                                 plan.scale)
 
 
 def predict_armature(arm_obj, frame):
-    """frame_change_pre: write the joints for the predicted pose (True when it could predict)."""
+    """frame_change_pre: write the joints for the predicted pose (True when it could predict; nothing is
+    written when the pose equals the one the joints were last written for)."""
     live = live_rig(arm_obj)
     pose = predicted_pose(arm_obj, live, frame)
     if pose is None:
         return False
-    write_pose(arm_obj, live, pose, muscles_visible(arm_obj))
+    surfaces = muscles_visible(arm_obj)
+    if not up_to_date(live, pose, surfaces):
+        write_pose(arm_obj, live, pose, surfaces)
     stats["predicted"] += 1
     return True
 
@@ -292,12 +352,20 @@ def stop_live(arm_obj, error):
         arm_obj.myoskin["live"] = False
 
 
+# The bound armatures found by the last frame_change_pre, for the frame_change_post of the same frame change
+# (scene pointer, frame, live-update armature names, baked armature names); used once, then cleared.
+_frame_armatures = None
+
+
 @persistent
 def on_frame_change_pre(scene, depsgraph=None):
-    global _busy
+    global _busy, _frame_armatures
+    _frame_armatures = None
     if _busy or not core_loader.available():
         return
-    armatures = bound_armatures(scene)
+    armatures, baked = split_bound_armatures(scene)
+    _frame_armatures = (scene.as_pointer(), scene.frame_current_final, [a.name for a in armatures],
+                        [a.name for a in baked])
     if not armatures:
         return
     _busy = True
@@ -312,13 +380,30 @@ def on_frame_change_pre(scene, depsgraph=None):
 
 
 @persistent
+def on_frame_change_post(scene, depsgraph=None):
+    """frame_change_post: on_update for the armatures the frame_change_pre of this frame change found."""
+    global _frame_armatures
+    found, _frame_armatures = _frame_armatures, None
+    if found is not None and found[0] == scene.as_pointer() and found[1] == scene.frame_current_final:
+        objects = bpy.data.objects
+        lists = tuple([o for o in (objects.get(n) for n in names) if o is not None] for names in found[2:])
+        update_all(scene, depsgraph, *lists)
+    else:
+        on_update(scene, depsgraph)
+
+
+@persistent
 def on_update(scene, depsgraph=None):
-    """frame_change_post / depsgraph_update_post: re-pose every bound armature whose skeleton moved."""
+    """depsgraph_update_post (and frame_change_post): re-pose every bound armature whose skeleton moved."""
+    if not _busy and core_loader.available():
+        update_all(scene, depsgraph, *split_bound_armatures(scene))
+
+
+def update_all(scene, depsgraph, armatures, baked):
+    """The post handlers' work: live armatures re-posed from the evaluated skeleton when it moved other
+    than predicted, baked ones get their muscle surfaces."""
     global _busy
-    if _busy or not core_loader.available():
-        return
-    armatures, baked = bound_armatures(scene), baked_armatures(scene)
-    if not armatures and not baked:
+    if _busy or not core_loader.available() or not (armatures or baked):
         return
     _busy = True
     try:
@@ -369,7 +454,7 @@ def on_reload(*_args):
 
 def _handlers():
     h = bpy.app.handlers
-    return ((h.frame_change_pre, on_frame_change_pre), (h.frame_change_post, on_update),
+    return ((h.frame_change_pre, on_frame_change_pre), (h.frame_change_post, on_frame_change_post),
             (h.depsgraph_update_post, on_update), (h.load_post, on_reload), (h.undo_post, on_reload),
             (h.redo_post, on_reload))
 

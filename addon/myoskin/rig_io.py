@@ -18,15 +18,16 @@ API
 - read_combined_weights(mesh_obj, bone_names) -> (#V by K joints, #V by K weights)
 - pose_bone_matrices(armature_obj, bone_names=None) -> #N by 4 by 4 PoseBone.matrix (evaluated pose)
 - write_joint_matrices(armature_obj, joint_names, joint_matrices, parent_matrices=None) -> None
-      sets the joints' pose (matrix_basis) so that PoseBone.matrix == joint_matrices[j], computed from the
-      parents' posed matrices (parent_matrices: {bone name: 4x4}, or read from the pose), then update_tag().
+      sets the joints' pose (location, rotation_quaternion, scale) so that PoseBone.matrix ==
+      joint_matrices[j], computed from the parents' posed matrices (parent_matrices: {bone name: 4x4} or
+      (names, #N by 4 by 4), or read from the pose), then update_tag().
 
 Blender conditions for the Armature modifier to compute Equation 3 exactly (DESIGN.md section 2):
 B-Bone segments 1, Envelope Multiply off, Deform on, linear (not preserve-volume) modifier.
 """
 import bpy
 import numpy as np
-from mathutils import Matrix
+from mathutils import Matrix, Quaternion, Vector
 
 from . import blender_io
 
@@ -149,6 +150,7 @@ def create_muscle_bones(armature_obj, joint_names, bind_matrices, parent_bones, 
     actual = blender_io.bone_rest_matrices(bones)
     for j, n in enumerate(names):
         bones[n][JOINT_TAG] = 1
+        armature_obj.pose.bones[n].rotation_mode = 'QUATERNION'  # write_joint_matrices' fast path
         err = float(np.abs(actual[bones.find(n)] - bind[j]).max())
         if err > REST_TOLERANCE:
             raise RuntimeError(f"create_muscle_bones: bone '{n}' matrix_local differs from its bind matrix by "
@@ -260,76 +262,127 @@ def forget_structures():
     _structure_cache.clear()
 
 
-def _joint_structure(armature_obj, names):
-    """(bone indices of the joints, their parents' bone indices (-1 = none), parent names, pose-bone
-    indices) for this armature's current bone layout; cached per layout (bone names are read each call,
-    so adding, removing or renaming bones refreshes it)."""
-    bones = armature_obj.data.bones
-    keys = tuple(bones.keys())
-    key = (armature_obj.data.as_pointer(), keys, tuple(names))
-    hit = _structure_cache.get(key)
-    if hit is not None:
+_CHANNEL_SIZES = (("location", 3), ("rotation_quaternion", 4), ("scale", 3))
+
+
+class _JointStructure:
+    """One armature layout's joint bookkeeping: bone indices of the joints and of their parents (-1 = none),
+    parent names, pose-bone indices of the joints; plus what only the rest pose decides (inv(rest_joint) @
+    rest_parent, kept while the rest matrices stay the same) and, per list of given parent names, where
+    each joint's parent is in it."""
+
+    def __init__(self, armature_obj, names):
+        bones = armature_obj.data.bones
+        keys = tuple(bones.keys())
+        position = {n: i for i, n in enumerate(keys)}
+        missing = [n for n in names if n not in position]
+        if missing:
+            raise ValueError(f"write_joint_matrices: no bone '{missing[0]}' in '{armature_obj.name}'")
+        self.index = np.array([position[n] for n in names], dtype=np.int64)
+        self.parent_names = [bones[n].parent.name if bones[n].parent else None for n in names]
+        self.parent_index = np.array([position[p] if p else -1 for p in self.parent_names], dtype=np.int64)
+        pose_position = {n: i for i, n in enumerate(armature_obj.pose.bones.keys())}
+        self.pose_index = np.array([pose_position[n] for n in names], dtype=np.int64)
+        self.rest_flat = None  # Bone.matrix_local of every bone as last read (foreach_get layout)
+        self.rest_part = None
+        self.given = {}
+        count = len(armature_obj.pose.bones)
+        self.buffers = {prop: np.empty(count * n, dtype=np.float32) for prop, n in _CHANNEL_SIZES}
+
+    def rest_to_parent(self, bones):
+        """#J by 4 by 4 inv(rest_joint) @ rest_parent (rest_parent = identity for a joint without a parent),
+        recomputed when the bones' rest matrices changed."""
+        flat = np.empty(len(bones) * 16, dtype=np.float32)
+        bones.foreach_get("matrix_local", flat)
+        if self.rest_flat is None or not np.array_equal(flat, self.rest_flat):
+            rest = flat.reshape(-1, 4, 4).transpose(0, 2, 1).astype(np.float64)
+            parent_rest = np.tile(np.eye(4), (len(self.index), 1, 1))
+            has_parent = self.parent_index >= 0
+            parent_rest[has_parent] = rest[self.parent_index[has_parent]]
+            self.rest_part = np.linalg.inv(rest[self.index]) @ parent_rest
+            self.rest_flat = flat
+        return self.rest_part
+
+    def given_positions(self, given_names):
+        """#J position of each joint's parent in given_names (-1 when absent or no parent)."""
+        key = tuple(given_names)
+        hit = self.given.get(key)
+        if hit is None:
+            where = {n: i for i, n in enumerate(key)}
+            hit = self.given[key] = np.array([where.get(p, -1) if p else -1 for p in self.parent_names],
+                                             dtype=np.int64)
         return hit
-    position = {n: i for i, n in enumerate(keys)}
-    missing = [n for n in names if n not in position]
-    if missing:
-        raise ValueError(f"write_joint_matrices: no bone '{missing[0]}' in '{armature_obj.name}'")
-    index = np.array([position[n] for n in names], dtype=np.int64)
-    parent_names = [bones[n].parent.name if bones[n].parent else None for n in names]
-    parent_index = np.array([position[p] if p else -1 for p in parent_names], dtype=np.int64)
-    pose_position = {n: i for i, n in enumerate(armature_obj.pose.bones.keys())}
-    pose_index = np.array([pose_position[n] for n in names], dtype=np.int64)
-    if len(_structure_cache) > 64:
-        _structure_cache.clear()
-    _structure_cache[key] = (index, parent_index, parent_names, pose_index)
-    return _structure_cache[key]
 
 
-def _local_bases(armature_obj, names, joint_matrices, parent_matrices):
-    """matrix_basis of each joint so that its posed matrix is joint_matrices[j]: Blender poses a child as
-    parent_pose @ parent_rest^-1 @ rest @ basis (full inheritance). Batched over the joints."""
-    index, parent_index, parent_names, pose_index = _joint_structure(armature_obj, names)
-    rest = blender_io.bone_rest_matrices(armature_obj.data.bones)
-    parent_pose = np.tile(np.eye(4), (len(names), 1, 1))
-    parent_rest = np.tile(np.eye(4), (len(names), 1, 1))
-    has_parent = parent_index >= 0
-    if has_parent.any():
-        given = parent_matrices or {}
-        posed = None
+def _joint_structure(armature_obj, names):
+    """The _JointStructure of this armature's current bone layout; cached per layout (bone names are read
+    each call, so adding, removing or renaming bones refreshes it)."""
+    key = (armature_obj.data.as_pointer(), tuple(armature_obj.data.bones.keys()), tuple(names))
+    hit = _structure_cache.get(key)
+    if hit is None:
+        if len(_structure_cache) > 64:
+            _structure_cache.clear()
+        hit = _structure_cache[key] = _JointStructure(armature_obj, names)
+    return hit
+
+
+def _parent_poses(armature_obj, st, parent_matrices):
+    """#J by 4 by 4 posed matrix of each joint's parent (identity for none): from parent_matrices ({name:
+    4 by 4}, or a pair (names, #N by 4 by 4)), else from the pose as last evaluated."""
+    count = len(st.index)
+    has_parent = st.parent_index >= 0
+    if isinstance(parent_matrices, tuple):
+        pos = st.given_positions(parent_matrices[0])
+        given = np.asarray(parent_matrices[1], dtype=np.float64)
+        if (pos >= 0).all():
+            return given[pos]
+        out = np.tile(np.eye(4), (count, 1, 1))
+        out[pos >= 0] = given[pos[pos >= 0]]
+        missing = has_parent & (pos < 0)
+    else:
+        out = np.tile(np.eye(4), (count, 1, 1))
+        missing = has_parent.copy()
         for j in np.flatnonzero(has_parent):
-            p = parent_names[j]
-            if p in given:
-                parent_pose[j] = given[p]
-            else:
-                if posed is None:
-                    posed = pose_bone_matrices(armature_obj)
-                parent_pose[j] = posed[parent_index[j]]
-        parent_rest[has_parent] = rest[parent_index[has_parent]]
-    to_local = np.linalg.inv(rest[index]) @ parent_rest @ np.linalg.inv(parent_pose)
-    return to_local @ joint_matrices, pose_index
+            p = st.parent_names[j]
+            if parent_matrices and p in parent_matrices:
+                out[j] = parent_matrices[p]
+                missing[j] = False
+    if missing.any():
+        out[missing] = pose_bone_matrices(armature_obj)[st.parent_index[missing]]
+    return out
 
 
 def write_joint_matrices(armature_obj, joint_names, joint_matrices, parent_matrices=None):
     """Pose the muscle-joint bones so that PoseBone.matrix == joint_matrices[j] (#J by 4 by 4, armature space;
     rotation times a scale in the joint's own axes, e.g. diag(s, lambda, s)). The parents' posed matrices
-    come from parent_matrices ({bone name: 4 by 4}, e.g. the skeleton pose the joints were computed from;
-    exact and free of evaluation lag) or else from the pose as last evaluated. Writes matrix_basis of all
-    pose bones with one foreach_set when every other bone uses quaternion rotation (their values are
-    written back unchanged), else bone by bone; then update_tag()."""
+    come from parent_matrices ({bone name: 4 by 4}, or a pair (bone names, #N by 4 by 4), e.g. the skeleton
+    pose the joints were computed from; exact and free of evaluation lag) or else from the pose as last
+    evaluated. The joints' channels come from the core (pose_channels: Blender's full inheritance and
+    matrix_basis decomposition); joints in quaternion rotation mode (as created) get location,
+    rotation_quaternion and scale with one foreach_set each (every other bone's values are written back
+    bit for bit, whatever its rotation mode), a joint in another mode gets matrix_basis. Then update_tag()."""
+    from . import core_loader
     _require_armature(armature_obj, "write_joint_matrices")
     names = [str(n) for n in joint_names]
-    matrices = _matrices(joint_matrices, len(names), "joint_matrices")
-    bases, index = _local_bases(armature_obj, names, matrices, parent_matrices)
+    matrices = np.asarray(joint_matrices, dtype=np.float64)
+    if matrices.ndim != 3 or matrices.shape[1:] != (4, 4) or matrices.shape[0] != len(names):
+        raise ValueError(f"joint_matrices must be {len(names)} by 4 by 4, got shape {matrices.shape}")
+    st = _joint_structure(armature_obj, names)
+    channels = core_loader.core().pose_channels(st.rest_to_parent(armature_obj.data.bones),
+                                                _parent_poses(armature_obj, st, parent_matrices), matrices)
     pose_bones = armature_obj.pose.bones
-    joint_set = set(index.tolist())
-    others_quaternion = all(pb.rotation_mode == 'QUATERNION' for i, pb in enumerate(pose_bones) if i not in joint_set)
-    if others_quaternion and len(pose_bones) > 1:
-        flat = np.empty(len(pose_bones) * 16, dtype=np.float32)
-        pose_bones.foreach_get("matrix_basis", flat)
-        all_bases = flat.reshape(-1, 4, 4)
-        all_bases[index] = bases.transpose(0, 2, 1).astype(np.float32)  # column-major per matrix
-        pose_bones.foreach_set("matrix_basis", all_bases.ravel())
-    else:
-        for i, basis in zip(index, bases):
-            pose_bones[int(i)].matrix_basis = Matrix(basis.tolist())
+    modes = [pose_bones[int(i)].rotation_mode for i in st.pose_index]
+    fast = None if all(m == 'QUATERNION' for m in modes) else np.array([m == 'QUATERNION' for m in modes])
+    rows = st.pose_index if fast is None else st.pose_index[fast]
+    if len(rows):
+        for (prop, size), values in zip(_CHANNEL_SIZES, channels):
+            flat = st.buffers[prop]
+            pose_bones.foreach_get(prop, flat)
+            flat.reshape(-1, size)[rows] = values if fast is None else values[fast]
+            pose_bones.foreach_set(prop, flat)
+    if fast is not None:
+        location, quaternion, scale = channels
+        for j in np.flatnonzero(~fast):
+            pose_bones[int(st.pose_index[j])].matrix_basis = Matrix.LocRotScale(
+                Vector(location[j]), Quaternion(quaternion[j]), Vector(scale[j]))
     armature_obj.update_tag()

@@ -444,6 +444,15 @@ def test_fk_playback_needs_one_evaluation_ik_is_corrected():
         scene.frame_set(frame)
         assert np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max() < 1e-5
     assert stats["predicted"] - before["predicted"] == 8 and stats["written"] == before["written"], stats
+    # a bone without F-curves posed by hand between frames: caught in that frame, predicted again after
+    hand = arm.pose.bones["hand"]
+    hand.rotation_mode = 'QUATERNION'
+    hand.rotation_quaternion = (0.9, 0.3, 0.0, 0.1)
+    before = dict(stats)
+    for frame in (5, 6):
+        scene.frame_set(frame)
+        assert np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max() < 1e-5
+    assert stats["written"] - before["written"] == 1 and stats["predicted"] - before["predicted"] == 2, stats
     # an IK chain whose target is animated
     target = bpy.data.objects.new("ik_target", None)
     scene.collection.objects.link(target)
@@ -460,6 +469,48 @@ def test_fk_playback_needs_one_evaluation_ik_is_corrected():
         err = np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max()
         assert err < 1e-5, f"frame {frame} with IK: {err:.3g} m"
     assert stats["written"] - before["written"] == 4 and stats["predicted"] == before["predicted"], stats
+
+
+def test_fk_prediction_covers_rotation_modes_location_and_scale():
+    """The frame_change_pre prediction reads every rotation mode, location and scale channel as Blender
+    does: every frame predicted, none rewritten from the evaluated pose, Blender equals the core; a
+    constraint added after the prediction was cached is caught in the same frame (exact, no lag)."""
+    arm, skin, state, _ = bound_arm()
+    scene = bpy.context.scene
+    keys = {  # bone: (rotation mode, channel, value at frame 1, value at frame 9)
+        "clavicle": ('ZXY', "rotation_euler", (0.05, -0.1, 0.08), (-0.1, 0.15, -0.05)),
+        "upper_arm": ('AXIS_ANGLE', "rotation_axis_angle", (0.0, 0.0, 0.0, 1.0), (0.5, 0.3, 1.0, 0.2)),
+        "forearm": ('YXZ', "rotation_euler", (0.0, 0.0, 0.0), (1.4, 0.2, -0.1)),
+        "hand": ('QUATERNION', "rotation_quaternion", (2.0, 0.0, 0.0, 0.0), (1.5, 0.4, 0.1, -0.3)),
+    }
+    for name, (mode, channel, first, last) in keys.items():
+        pb = arm.pose.bones[name]
+        pb.rotation_mode = mode
+        for frame, value in ((1, first), (9, last)):
+            setattr(pb, channel, value)
+            pb.keyframe_insert(channel, frame=frame)
+    clavicle, hand = arm.pose.bones["clavicle"], arm.pose.bones["hand"]
+    assert hand.bone.use_connect and not clavicle.bone.use_connect  # Blender ignores the hand's location
+    for frame, (loc, size) in ((1, ((0, 0, 0), 1.0)), (9, ((0.01, 0.02, -0.01), 1.1))):
+        clavicle.location = hand.location = loc
+        hand.scale = (size,) * 3
+        for pb in (clavicle, hand):
+            pb.keyframe_insert("location", frame=frame)
+        hand.keyframe_insert("scale", frame=frame)
+    stats = module("live").stats
+    scene.frame_set(1)
+    before = dict(stats)
+    for frame in range(2, 9):
+        scene.frame_set(frame)
+        err = np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max()
+        assert err < 1e-5, f"frame {frame}: {err:.3g} m"
+    assert stats["predicted"] - before["predicted"] == 7 and stats["written"] == before["written"], stats
+    limit = arm.pose.bones["forearm"].constraints.new('LIMIT_ROTATION')
+    limit.use_limit_x, limit.min_x, limit.max_x = True, 0.0, 0.5
+    before = dict(stats)
+    scene.frame_set(7)
+    err = np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max()
+    assert err < 1e-5 and stats["written"] - before["written"] == 1, (err, stats)
 
 
 def test_export_gltf_with_helper_bones():

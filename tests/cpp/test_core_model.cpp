@@ -114,6 +114,62 @@ TEST(Skeleton, ForwardKinematicsRotatesChildrenAboutTheParentHead) {
   EXPECT_LT((lowerHead - Vec3(0, 1, 0)).norm(), 1e-12) << lowerHead.transpose();
 }
 
+TEST(Skeleton, ForwardKinematicsFromChannelsFollowsBlenderConventions) {
+  using RM = RotationMode;
+  const Vec3 e(0.3, -0.7, 1.1);
+  auto R = [](int axis, double a) { return Eigen::AngleAxisd(a, Vec3::Unit(axis)).toRotationMatrix(); };
+  const Eigen::Vector4d euler(e.x(), e.y(), e.z(), 0.0);
+  // Euler 'XYZ' applies X first: R = Rz Ry Rx; 'ZXY': R = Ry Rx Rz.
+  EXPECT_LT((channelRotation(RM::XYZ, euler) - R(2, e.z()) * R(1, e.y()) * R(0, e.x())).norm(), 1e-12);
+  EXPECT_LT((channelRotation(RM::ZXY, euler) - R(1, e.y()) * R(0, e.x()) * R(2, e.z())).norm(), 1e-12);
+  EXPECT_LT((channelRotation(RM::YZX, euler) - R(0, e.x()) * R(2, e.z()) * R(1, e.y())).norm(), 1e-12);
+  // A quaternion is normalised; a zero one is (0, 1, 0, 0) (180 degrees about X), as in Blender.
+  EXPECT_LT((channelRotation(RM::Quaternion, Eigen::Vector4d(2, 0, 0, 0)) - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+  EXPECT_LT((channelRotation(RM::Quaternion, Eigen::Vector4d::Zero()) - R(0, M_PI)).norm(), 1e-12);
+  // Axis-angle: (angle, axis), the axis normalised; a zero axis gives no rotation.
+  EXPECT_LT((channelRotation(RM::AxisAngle, Eigen::Vector4d(0.5, 0, 0, 3)) - R(2, 0.5)).norm(), 1e-12);
+  EXPECT_LT((channelRotation(RM::AxisAngle, Eigen::Vector4d(0.5, 0, 0, 0)) - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+
+  Skeleton s;
+  s.bones.push_back(Bone{"upper", -1, Vec3(0, 0, 0), Vec3(1, 0, 0), boneMatrix(Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3::UnitZ())});
+  s.bones.push_back(Bone{"lower", 0, Vec3(1, 0, 0), Vec3(2, 0, 0), boneMatrix(Vec3(1, 0, 0), Vec3(2, 0, 0), Vec3::UnitZ())});
+  std::vector<BoneChannels> c(2);
+  const Pose rest = poseFromChannels(s, c);
+  for (int i = 0; i < 2; ++i) EXPECT_LT((rest.matrices[i] - s.bones[i].rest).norm(), 1e-12);
+  // Quaternion channels alone equal poseFromLocalRotations; location and scale give T R S in the bone frame.
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(0.8, Vec3(1, 2, 3).normalized()));
+  c[0].rotation = Eigen::Vector4d(q.w(), q.x(), q.y(), q.z());
+  const Pose a = poseFromChannels(s, c);
+  const Pose b = poseFromLocalRotations(s, {q, Eigen::Quaterniond::Identity()});
+  for (int i = 0; i < 2; ++i) EXPECT_LT((a.matrices[i] - b.matrices[i]).norm(), 1e-12);
+  c[1].location = Vec3(0.1, 0.2, 0.3);
+  c[1].scale = Vec3(2, 2, 2);
+  c[1].mode = RM::XYZ;
+  c[1].rotation = euler;
+  const Pose d = poseFromChannels(s, c);
+  Mat4 basis = Mat4::Identity();
+  basis.block<3, 3>(0, 0) = channelRotation(RM::XYZ, euler) * 2.0;
+  basis.block<3, 1>(0, 3) = c[1].location;
+  const Mat4 expected = a.matrices[0] * s.bones[0].rest.inverse() * s.bones[1].rest * basis;
+  EXPECT_LT((d.matrices[1] - expected).norm(), 1e-12);
+  // channelsFromBasis inverts the basis T R S (quaternion channels), also for a scale along the bone's
+  // own axes (a muscle joint's diag(s, lambda, s)) and a mirroring (negative) scale.
+  for (const Vec3& size : {Vec3(0.9, 1.3, 0.9), Vec3(-1.0, -1.0, -1.0)}) {
+    Mat4 m = Mat4::Identity();
+    m.block<3, 3>(0, 0) = channelRotation(RM::ZXY, euler) * size.asDiagonal();
+    m.block<3, 1>(0, 3) = Vec3(0.3, -0.2, 0.1);
+    const BoneChannels back = channelsFromBasis(m);
+    EXPECT_EQ(back.mode, RM::Quaternion);
+    Mat4 again = Mat4::Identity();
+    again.block<3, 3>(0, 0) = channelRotation(RM::Quaternion, back.rotation) * back.scale.asDiagonal();
+    again.block<3, 1>(0, 3) = back.location;
+    EXPECT_LT((again - m).norm(), 1e-12) << size.transpose();
+  }
+  c[1].scale.x() = std::nan("");
+  EXPECT_THROW(poseFromChannels(s, c), InputError);
+  EXPECT_THROW(poseFromChannels(s, std::vector<BoneChannels>(1)), InputError);
+}
+
 TEST(Skeleton, ValidationNamesTheBadBone) {
   Skeleton s;
   s.bones.push_back(Bone{"root", -1, Vec3(0, 0, 0), Vec3(0, 1, 0)});

@@ -2,6 +2,7 @@
 // muscle weights, rest pose exactness, elbow bending against plain LBS, bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <functional>
@@ -145,6 +146,50 @@ TEST(HybridWeights, DominanceGlobalAndPerMuscle) {
   const SkinWeights w4 = computeHybridWeights(c.mesh, c.weights, rig, four);
   EXPECT_EQ(w4.influences(), 4);
   for (int v = 0; v < c.mesh.numVertices(); ++v) ASSERT_NEAR(w4.weights.row(v).sum(), 1.0, 1e-12);
+}
+
+TEST(HybridWeights, MinWeightDropsTinyMuscleWeights) {
+  // Default minWeight 0.01: far fewer muscle-joint weights below 0.01 (those left are ramped ones, the
+  // weights stay continuous), fewer influences in all, muscle shares moved by at most 0.01 per muscle,
+  // rows still sum to 1.
+  const ArmRig& a = armRig();
+  const Character& c = a.character;
+  const MuscleRig rig(c.skeleton, a.muscles);
+  const int nb = c.skeleton.numBones();
+  HybridWeightOptions all;
+  all.minWeight = 0.0;
+  const SkinWeights w0 = computeHybridWeights(c.mesh, c.weights, rig, all);
+  const SkinWeights w = computeHybridWeights(c.mesh, c.weights, rig);
+  int n0 = 0, n = 0, tiny0 = 0, tiny = 0;
+  double largestChange = 0.0;
+  for (int v = 0; v < c.mesh.numVertices(); ++v) {
+    ASSERT_NEAR(w.weights.row(v).sum(), 1.0, 1e-12) << "vertex " << v;
+    for (int k = 0; k < w.influences(); ++k) {
+      n0 += w0.joints(v, k) >= 0 && w0.weights(v, k) > 0;
+      n += w.joints(v, k) >= 0 && w.weights(v, k) > 0;
+      tiny0 += w0.joints(v, k) >= nb && w0.weights(v, k) > 0 && w0.weights(v, k) < 0.01;
+      tiny += w.joints(v, k) >= nb && w.weights(v, k) > 0 && w.weights(v, k) < 0.01;
+    }
+    // Each muscle's share moves by at most minWeight (the ramp's largest step, at 0.01).
+    std::vector<int> here;
+    for (int k = 0; k < w0.influences(); ++k)
+      if (w0.joints(v, k) >= nb && w0.weights(v, k) > 0) here.push_back(rig.jointMuscle()[w0.joints(v, k) - nb]);
+    std::sort(here.begin(), here.end());
+    const double muscles = static_cast<double>(std::unique(here.begin(), here.end()) - here.begin());
+    const double change = std::abs(muscleShare(w, v, nb) - muscleShare(w0, v, nb));
+    ASSERT_LE(change, 0.01 * muscles + 1e-12) << "vertex " << v;
+    largestChange = std::max(largestChange, change);
+  }
+  std::printf("influences: %d with every weight (%d muscle weights < 0.01), %d with minWeight 0.01 (%d); largest "
+              "muscle share change %.4f\n", n0, tiny0, n, tiny, largestChange);
+  EXPECT_GT(tiny0, c.mesh.numVertices() / 20);
+  EXPECT_LT(tiny, tiny0 / 4);
+  EXPECT_LT(n, n0 - tiny0 / 2);
+  HybridWeightOptions bad;
+  bad.minWeight = 0.5;
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, bad); }).find("minWeight"), std::string::npos);
+  bad.minWeight = -0.1;
+  EXPECT_NE(test::inputErrorOf([&] { computeHybridWeights(c.mesh, c.weights, rig, bad); }).find("minWeight"), std::string::npos);
 }
 
 TEST(HybridSkinning, RestPoseReproducesTheSkinWithMusclesBound) {

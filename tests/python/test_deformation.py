@@ -26,6 +26,32 @@ def elbow_pose(core, character, angle):
     return core.pose_from_rotations(character, q)
 
 
+def test_pose_from_channels(core, arm_rig):
+    """Blender's pose-bone channels -> FK: rest at default channels, quaternions equal pose_from_rotations,
+    an XYZ Euler equals the same rotation as a quaternion, bad input is a ValueError."""
+    character = arm_rig[0]
+    nb = character.num_bones
+    loc, scale = np.zeros((nb, 3)), np.ones((nb, 3))
+    rot = np.tile([1.0, 0, 0, 0], (nb, 1))
+    np.testing.assert_allclose(core.pose_from_channels(character, loc, [0] * nb, rot, scale),
+                               core.rest_pose(character), atol=1e-12)
+    fore = character.bone_names.index("forearm")
+    rot[fore] = quat([1, 0, 0], 1.2)
+    expected = core.pose_from_rotations(character, rot)
+    np.testing.assert_allclose(core.pose_from_channels(character, loc, [0] * nb, rot, scale), expected, atol=1e-12)
+    modes = [0] * nb
+    modes[fore] = 1  # Euler XYZ
+    rot[fore] = [1.2, 0.0, 0.0, 0.0]
+    np.testing.assert_allclose(core.pose_from_channels(character, loc, modes, rot, scale), expected, atol=1e-12)
+    with pytest.raises(ValueError, match="rotation mode 7"):
+        core.pose_from_channels(character, loc, [7] * nb, rot, scale)
+    with pytest.raises(ValueError, match="rows"):
+        core.pose_from_channels(character, loc[1:], modes, rot, scale)
+    scale[0, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        core.pose_from_channels(character, loc, modes, rot, scale)
+
+
 def test_rest_pose_gives_bind_matrices_and_rest_surfaces(core, arm_rig):
     character, muscles, rig = arm_rig
     assert rig.num_muscles == len(muscles)

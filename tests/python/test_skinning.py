@@ -208,6 +208,10 @@ def test_hybrid_weights_rest_pose_and_bad_input(core, arm):
         core.hybrid_weights(arm, rig, muscle_dominance={"nope": 1.0})
     with pytest.raises(ValueError, match="dominance must be in"):
         core.hybrid_weights(arm, rig, dominance=2.0)
+    every = core.hybrid_weights(arm, rig, min_weight=0.0)  # no pruning: more influences, same row sums
+    assert (every[1] > 0).sum() > (weights > 0).sum() and np.abs(every[1].sum(axis=1) - 1).max() < 1e-12
+    with pytest.raises(ValueError, match="minWeight must be in"):
+        core.hybrid_weights(arm, rig, min_weight=0.5)
     with pytest.raises(ValueError, match="joint matrices for"):
         core.skinning_transforms(arm, rest, rig, rig.evaluate(rest)["joint_matrices"][:-1])
 

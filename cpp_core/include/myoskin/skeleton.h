@@ -52,4 +52,31 @@ Pose restPose(const Skeleton& skeleton);
 // (Blender's PoseBone.rotation_quaternion with no location/scale). Size must equal numBones().
 Pose poseFromLocalRotations(const Skeleton& skeleton, const std::vector<Eigen::Quaterniond>& localRotations);
 
+// How a bone's rotation channel is read, as Blender's PoseBone.rotation_mode (same integer codes):
+// quaternion (w, x, y, z), axis-angle (angle in radians, axis x, y, z), or Euler angles (x, y, z) applied
+// in the named order ('XYZ': X first, R = Rz Ry Rx).
+enum class RotationMode : int { AxisAngle = -1, Quaternion = 0, XYZ = 1, XZY = 2, YXZ = 3, YZX = 4, ZXY = 5, ZYX = 6 };
+
+// One bone's local channels (Blender's PoseBone location, rotation, scale): basis = T(location) R S(scale).
+struct BoneChannels {
+  Vec3 location = Vec3::Zero();
+  RotationMode mode = RotationMode::Quaternion;
+  Eigen::Vector4d rotation = Eigen::Vector4d(1, 0, 0, 0);  // by mode; an Euler mode uses the first three
+  Vec3 scale = Vec3::Ones();
+};
+
+// Forward kinematics from local channels with full inheritance (Blender's default bone settings):
+// matrix_i = matrix_parent * rest_parent^-1 * rest_i * basis_i. A quaternion is normalised (a zero one
+// gives (0, 1, 0, 0), as in Blender), a zero axis gives no rotation. Throws InputError on a size mismatch
+// or a non-finite value (naming the bone).
+Pose poseFromChannels(const Skeleton& skeleton, const std::vector<BoneChannels>& channels);
+
+// The rotation matrix of one channel (the R of poseFromChannels).
+Eigen::Matrix3d channelRotation(RotationMode mode, const Eigen::Vector4d& rotation);
+
+// Quaternion-mode channels of a basis matrix T R S (S a scale along the bone's own axes), decomposed as
+// Blender's PoseBone.matrix_basis setter does: scale = column lengths (negated when the determinant is
+// negative), rotation = the quaternion of the normalised columns. Inverse of poseFromChannels' basis.
+BoneChannels channelsFromBasis(const Mat4& basis);
+
 }  // namespace myoskin

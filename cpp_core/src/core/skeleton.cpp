@@ -83,4 +83,65 @@ Pose poseFromLocalRotations(const Skeleton& skeleton, const std::vector<Eigen::Q
   return pose;
 }
 
+Eigen::Matrix3d channelRotation(RotationMode mode, const Eigen::Vector4d& r) {
+  switch (mode) {
+    case RotationMode::Quaternion: {
+      const double n = r.norm();
+      const Eigen::Quaterniond q = n > 0 ? Eigen::Quaterniond(r[0] / n, r[1] / n, r[2] / n, r[3] / n)
+                                         : Eigen::Quaterniond(0, 1, 0, 0);
+      return q.toRotationMatrix();
+    }
+    case RotationMode::AxisAngle: {
+      const Vec3 axis = r.tail<3>();
+      if (axis.norm() <= 0) return Eigen::Matrix3d::Identity();
+      return Eigen::AngleAxisd(r[0], axis.normalized()).toRotationMatrix();
+    }
+    default: {
+      static const char* orders[] = {"XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"};
+      const int code = static_cast<int>(mode);
+      if (code < 1 || code > 6) throw InputError("pose: unknown rotation mode " + std::to_string(code));
+      Eigen::Matrix3d out = Eigen::Matrix3d::Identity();
+      for (const char* a = orders[code - 1]; *a; ++a) {
+        const int k = *a - 'X';
+        out = Eigen::AngleAxisd(r[k], Vec3::Unit(k)).toRotationMatrix() * out;  // later axes apply after
+      }
+      return out;
+    }
+  }
+}
+
+BoneChannels channelsFromBasis(const Mat4& basis) {
+  BoneChannels c;
+  c.location = basis.block<3, 1>(0, 3);
+  Mat3 m = basis.block<3, 3>(0, 0);
+  c.scale = m.colwise().norm().transpose();
+  if (m.determinant() < 0) c.scale = -c.scale;
+  for (int k = 0; k < 3; ++k)
+    if (c.scale[k] != 0) m.col(k) /= c.scale[k];
+  const Eigen::Quaterniond q(m);
+  c.rotation = Eigen::Vector4d(q.w(), q.x(), q.y(), q.z());
+  return c;
+}
+
+Pose poseFromChannels(const Skeleton& skeleton, const std::vector<BoneChannels>& channels) {
+  if (static_cast<int>(channels.size()) != skeleton.numBones())
+    throw InputError("pose: " + std::to_string(channels.size()) + " channel sets for " +
+                     std::to_string(skeleton.numBones()) + " bones");
+  Pose pose;
+  pose.matrices.resize(skeleton.bones.size());
+  for (int i = 0; i < skeleton.numBones(); ++i) {
+    const Bone& b = skeleton.bones[i];
+    const BoneChannels& c = channels[i];
+    if (!c.location.allFinite() || !c.rotation.allFinite() || !c.scale.allFinite())
+      throw InputError("pose: bone '" + b.name + "' has a NaN or infinite channel value");
+    Mat4 basis = Mat4::Identity();
+    basis.block<3, 3>(0, 0) = channelRotation(c.mode, c.rotation) * c.scale.asDiagonal();
+    basis.block<3, 1>(0, 3) = c.location;
+    const Mat4 parentDelta = b.parent < 0 ? Mat4::Identity()
+                                          : Mat4(pose.matrices[b.parent] * skeleton.bones[b.parent].rest.inverse());
+    pose.matrices[i] = parentDelta * b.rest * basis;
+  }
+  return pose;
+}
+
 }  // namespace myoskin

@@ -19,6 +19,12 @@ struct MuscleEntry {
   double weight;  // dominance * distance falloff * side, smoothed
 };
 
+// Minimum-weight ramp: 0 below c, then 2 (x - c) up to 2c, then x (continuous, the identity from 2c on).
+double ramp(double x, double c) {
+  if (x >= 2.0 * c) return x;
+  return x < c ? 0.0 : 2.0 * (x - c);
+}
+
 // Vertex neighbours in CSR form (from the triangles' edges; duplicates are harmless for averaging).
 void adjacency(const Mesh& skin, std::vector<int>& start, std::vector<int>& next) {
   const int nv = skin.numVertices();
@@ -78,6 +84,8 @@ void checkOptions(const HybridWeightOptions& o, const MuscleRig& rig) {
   if (!(o.fullDistance >= 0.0 && o.falloffDistance > o.fullDistance) || !std::isfinite(o.falloffDistance))
     throw InputError("hybrid weights: need 0 <= fullDistance < falloffDistance");
   if (o.smoothingIterations < 0) throw InputError("hybrid weights: smoothingIterations must be >= 0");
+  if (!(o.minWeight >= 0.0 && o.minWeight <= 0.25))
+    throw InputError("hybrid weights: minWeight must be in [0, 0.25], got " + std::to_string(o.minWeight));
   if (!(o.endTaper >= 0.0 && o.endTaper <= 0.5)) throw InputError("hybrid weights: endTaper must be in [0, 0.5]");
 }
 
@@ -203,29 +211,50 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
   out.weights = WeightMatrix::Zero(nv, K);
   tbb::parallel_for(tbb::blocked_range<int>(0, nv, 1024), [&](const tbb::blocked_range<int>& r) {
     std::vector<std::pair<double, int>> row;
-    std::vector<double> muscleShare;
+    std::vector<double> muscleShare, take, boneWeight(skeletonWeights.influences());
     for (int v = r.begin(); v != r.end(); ++v) {
       double skeletonSum = 0.0;
       for (int k = 0; k < skeletonWeights.influences(); ++k)
         if (skeletonWeights.joints(v, k) >= 0) skeletonSum += skeletonWeights.weights(v, k);
       if (skeletonSum <= kRestWeightThreshold) continue;
       // Each bone's (normalised) weight w_b gives up the fraction 1 - prod(1 - e_m) over the muscles m
-      // spanning it, shared among those muscles in proportion to e_m.
+      // spanning it, shared among those muscles in proportion to e_m (take[q][k]: what muscle q takes from
+      // slot k's bone).
       row.clear();
       muscleShare.assign(entries[v].size(), 0.0);
-      for (int k = 0; k < skeletonWeights.influences(); ++k) {
+      take.assign(entries[v].size() * skeletonWeights.influences(), 0.0);
+      const int S = skeletonWeights.influences();
+      for (int k = 0; k < S; ++k) {
         const int b = skeletonWeights.joints(v, k);
         const double w = skeletonWeights.weights(v, k) / skeletonSum;
+        boneWeight[k] = 0.0;
         if (b < 0 || w <= 0.0) continue;
         double keep = 1.0, claim = 0.0;
         for (const MuscleEntry& e : entries[v])
           if (spans[e.muscle][b]) keep *= 1.0 - e.weight, claim += e.weight;
         for (size_t q = 0; q < entries[v].size(); ++q)
-          if (spans[entries[v][q].muscle][b]) muscleShare[q] += w * (1.0 - keep) * entries[v][q].weight / claim;
+          if (spans[entries[v][q].muscle][b]) {
+            take[q * S + k] = w * (1.0 - keep) * entries[v][q].weight / claim;
+            muscleShare[q] += take[q * S + k];
+          }
+        boneWeight[k] = w * keep;
+      }
+      // A muscle's share below minWeight goes back to the bones it came from (ramped, see minWeight).
+      for (size_t q = 0; q < entries[v].size(); ++q) {
+        const double share = muscleShare[q];
+        if (share <= 0.0) continue;
+        const double back = 1.0 - ramp(share, options.minWeight) / share;
+        if (back <= 0.0) continue;
+        for (int k = 0; k < S; ++k) boneWeight[k] += back * take[q * S + k];
+        muscleShare[q] -= back * share;
+      }
+      for (int k = 0; k < S; ++k) {
+        const int b = skeletonWeights.joints(v, k);
+        if (b < 0 || skeletonWeights.weights(v, k) <= 0.0) continue;
         bool merged = false;
         for (auto& [rw, rj] : row)
-          if (rj == b) rw += w * keep, merged = true;
-        if (!merged) row.push_back({w * keep, b});
+          if (rj == b) rw += boneWeight[k], merged = true;
+        if (!merged) row.push_back({boneWeight[k], b});
       }
       const Vec3 p = skin.vertices.row(v).transpose();
       for (size_t q = 0; q < entries[v].size(); ++q) {
@@ -236,8 +265,11 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
         int segment;
         double t;
         projectOnPolyline(jointLine[e.muscle], p, segment, t);
-        row.push_back({share * (1.0 - t), first + segment});
-        if (t > 0.0) row.push_back({share * t, first + segment + 1});
+        // The smaller part of the split below minWeight goes to the other joint (ramped).
+        const double small = share * std::min(t, 1.0 - t), kept = ramp(small, options.minWeight);
+        const double second = t <= 0.5 ? kept : share - kept;
+        if (share - second > 0.0) row.push_back({share - second, first + segment});
+        if (second > 0.0) row.push_back({second, first + segment + 1});
       }
       std::sort(row.begin(), row.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
       const int used = std::min<int>(K, static_cast<int>(row.size()));
