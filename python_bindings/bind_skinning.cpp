@@ -173,7 +173,7 @@ void bindSkinning(py::module_& m) {
       "hybrid_weights",
       [](const Character& c, const PyMuscleRig& rig, double dominance, const std::map<std::string, double>& perMuscle,
          int maxInfluences, double fullDistance, double falloffDistance, int smoothingIterations, double endTaper,
-         double minWeight) {
+         double minWeight, double creaseRelief) {
         if (!c.hasWeights()) throw InputError("hybrid_weights: character '" + c.name + "' has no skin weights");
         if (rig.skeleton().numBones() != c.skeleton.numBones())
           throw InputError("hybrid_weights: the rig has " + std::to_string(rig.skeleton().numBones()) +
@@ -187,6 +187,7 @@ void bindSkinning(py::module_& m) {
         o.smoothingIterations = smoothingIterations;
         o.endTaper = endTaper;
         o.minWeight = minWeight;
+        o.creaseRelief = creaseRelief;
         SkinWeights w;
         {
           py::gil_scoped_release release;
@@ -202,10 +203,12 @@ void bindSkinning(py::module_& m) {
       py::arg("smoothing_iterations") = HybridWeightOptions{}.smoothingIterations,
       py::arg("end_taper") = HybridWeightOptions{}.endTaper,
       py::arg("min_weight") = HybridWeightOptions{}.minWeight,
+      py::arg("crease_relief") = HybridWeightOptions{}.creaseRelief,
       "Combined weights (joints #V by K over [0, #B + #J), weights #V by K; rows sum to 1) from the "
       "character's skeleton weights and the rig's muscles: distance to each muscle's surface and side, "
       "smoothed, split between neighbouring muscle joints; muscle weights below min_weight go back to the "
-      "bones (continuous ramp); dominance 0 gives the skeleton weights.");
+      "bones (continuous ramp); crease_relief: in the skeleton's joint crease (skin blended between bones) the "
+      "muscles take this much less (0 = off); dominance 0 gives the skeleton weights.");
 
   // ==========================================================================
   // Quality measures

@@ -332,6 +332,46 @@ TEST(HybridSkinning, ShoulderSwingAndForearmTwistKeepTheSkinVolume) {
   }
 }
 
+TEST(HybridSkinning, CreaseReliefKeepsTheElbowCreaseOfAMuscleThatCrossesIt) {
+  // Seed 2's brachialis is followed across the elbow: on flexion it bowstrings and, bound to the crease's
+  // skin, lifts it (elbow region +12.2 % at 70 degrees where plain LBS loses 13.9 %). With the default crease
+  // relief (0.5) the muscles take less of the skin the skeleton blends between bones: +7.3 %.
+  SyntheticArmOptions so;
+  so.seed = 2;
+  const Character c = makeSyntheticArm(so).character;
+  const MuscleRig rig(c.skeleton, extractMuscles(c).muscles);
+  const int nb = c.skeleton.numBones();
+  IndexVector elbow = IndexVector::Constant(c.mesh.numVertices(), -1);
+  const int upperBone = c.skeleton.find("upper_arm"), foreBone = c.skeleton.find("forearm");
+  for (int v = 0; v < c.mesh.numVertices(); ++v) {
+    double wu = 0, wf = 0;
+    for (int k = 0; k < c.weights.influences(); ++k) {
+      if (c.weights.joints(v, k) == upperBone) wu += c.weights.weights(v, k);
+      if (c.weights.joints(v, k) == foreBone) wf += c.weights.weights(v, k);
+    }
+    if (wu > 0.02 && wf > 0.02) elbow[v] = 0;
+  }
+  const Pose pose = elbowPose(c.skeleton, 70.0);
+  MuscleRigState state = rig.makeState();
+  rig.evaluate(pose, state);
+  std::vector<Mat4> t;
+  skinningTransforms(c.skeleton, pose, rig, state, t);
+  auto region = [&](double relief) {
+    HybridWeightOptions o;
+    o.creaseRelief = relief;
+    const Skinner s(c.mesh.vertices, computeHybridWeights(c.mesh, c.weights, rig, o), nb + rig.numJoints());
+    Points p;
+    s.deform(t, p);
+    return regionVolumeChange(c.mesh.vertices, p, c.mesh.triangles, elbow, 1)[0];
+  };
+  const double off = region(0.0), on = region(HybridWeightOptions{}.creaseRelief);
+  std::printf("seed 2, elbow 70 deg: elbow region %+.1f %% without crease relief, %+.1f %% with it\n", 100 * off, 100 * on);
+  EXPECT_LT(std::abs(on), 0.75 * std::abs(off));
+  HybridWeightOptions bad;
+  bad.creaseRelief = 1.5;
+  EXPECT_THROW(computeHybridWeights(c.mesh, c.weights, rig, bad), InputError);
+}
+
 TEST(HybridWeights, BadInput) {
   const ArmRig& a = armRig();
   const Character& c = a.character;

@@ -87,6 +87,8 @@ void checkOptions(const HybridWeightOptions& o, const MuscleRig& rig) {
   if (!(o.minWeight >= 0.0 && o.minWeight <= 0.25))
     throw InputError("hybrid weights: minWeight must be in [0, 0.25], got " + std::to_string(o.minWeight));
   if (!(o.endTaper >= 0.0 && o.endTaper <= 0.5)) throw InputError("hybrid weights: endTaper must be in [0, 0.5]");
+  if (!(o.creaseRelief >= 0.0 && o.creaseRelief <= 1.0))
+    throw InputError("hybrid weights: creaseRelief must be in [0, 1], got " + std::to_string(o.creaseRelief));
 }
 
 }  // namespace
@@ -106,6 +108,16 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
   adjacency(skin, start, next);
   std::vector<std::vector<MuscleEntry>> entries(nv);
   std::vector<int> local(nv, -1);
+  // Crease relief per vertex: 1 - creaseRelief * beta, beta = 2 (1 - the largest bone share) in [0, 1].
+  std::vector<double> relief(nv, 1.0);
+  if (options.creaseRelief > 0.0)
+    for (int v = 0; v < nv; ++v) {
+      double sum = 0.0, largest = 0.0;
+      for (int k = 0; k < skeletonWeights.influences(); ++k)
+        if (skeletonWeights.joints(v, k) >= 0)
+          sum += skeletonWeights.weights(v, k), largest = std::max(largest, skeletonWeights.weights(v, k));
+      if (sum > kRestWeightThreshold) relief[v] = 1.0 - options.creaseRelief * std::clamp(2.0 * (1.0 - largest / sum), 0.0, 1.0);
+    }
 
   // ==========================================================================
   // Per muscle: distance + side on the vertices near it, then smoothing over the skin
@@ -162,7 +174,7 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
           const double e = std::min(u, 1.0 - u) / options.endTaper;
           taper = e >= 1.0 ? 1.0 : e * e * (3.0 - 2.0 * e);
         }
-        value[i] = dominance * f * side * taper;
+        value[i] = dominance * f * side * taper * relief[near[i]];
       }
     });
     std::vector<double> smoothed(value.size());
