@@ -59,6 +59,21 @@ Pose elbowPose(const Skeleton& sk, double degrees) {
   return poseFromLocalRotations(sk, q);
 }
 
+// The elbow region (label 0, others -1): skin the skeleton blends between upper arm and forearm.
+IndexVector elbowRegion(const Character& c) {
+  IndexVector elbow = IndexVector::Constant(c.mesh.numVertices(), -1);
+  const int upperBone = c.skeleton.find("upper_arm"), foreBone = c.skeleton.find("forearm");
+  for (int v = 0; v < c.mesh.numVertices(); ++v) {
+    double wu = 0, wf = 0;
+    for (int k = 0; k < c.weights.influences(); ++k) {
+      if (c.weights.joints(v, k) == upperBone) wu += c.weights.weights(v, k);
+      if (c.weights.joints(v, k) == foreBone) wf += c.weights.weights(v, k);
+    }
+    if (wu > 0.02 && wf > 0.02) elbow[v] = 0;
+  }
+  return elbow;
+}
+
 double muscleShare(const SkinWeights& w, int v, int numBones, int first = -1, int count = 0) {
   double s = 0;
   for (int k = 0; k < w.influences(); ++k) {
@@ -229,16 +244,7 @@ TEST(HybridSkinning, ElbowBendKeepsVolumeBetterAndTheBicepsBulges) {
       region.push_back(v);
   ASSERT_GT(region.size(), 200u);
   // The elbow region (per-region volume): skin blended between upper arm and forearm.
-  IndexVector elbow = IndexVector::Constant(c.mesh.numVertices(), -1);
-  const int upperBone = c.skeleton.find("upper_arm"), foreBone = c.skeleton.find("forearm");
-  for (int v = 0; v < c.mesh.numVertices(); ++v) {
-    double wu = 0, wf = 0;
-    for (int k = 0; k < c.weights.influences(); ++k) {
-      if (c.weights.joints(v, k) == upperBone) wu += c.weights.weights(v, k);
-      if (c.weights.joints(v, k) == foreBone) wf += c.weights.weights(v, k);
-    }
-    if (wu > 0.02 && wf > 0.02) elbow[v] = 0;
-  }
+  const IndexVector elbow = elbowRegion(c);
   MuscleRigState state = rig.makeState();
   double hybridChange = 0, plainChange = 0, hybridBulge = 0, plainBulge = 0, plainBulgeMax = 0;
   for (double degrees : {35.0, 70.0, 105.0, 140.0}) {
@@ -341,16 +347,7 @@ TEST(HybridSkinning, CreaseReliefKeepsTheElbowCreaseOfAMuscleThatCrossesIt) {
   const Character c = makeSyntheticArm(so).character;
   const MuscleRig rig(c.skeleton, extractMuscles(c).muscles);
   const int nb = c.skeleton.numBones();
-  IndexVector elbow = IndexVector::Constant(c.mesh.numVertices(), -1);
-  const int upperBone = c.skeleton.find("upper_arm"), foreBone = c.skeleton.find("forearm");
-  for (int v = 0; v < c.mesh.numVertices(); ++v) {
-    double wu = 0, wf = 0;
-    for (int k = 0; k < c.weights.influences(); ++k) {
-      if (c.weights.joints(v, k) == upperBone) wu += c.weights.weights(v, k);
-      if (c.weights.joints(v, k) == foreBone) wf += c.weights.weights(v, k);
-    }
-    if (wu > 0.02 && wf > 0.02) elbow[v] = 0;
-  }
+  const IndexVector elbow = elbowRegion(c);
   const Pose pose = elbowPose(c.skeleton, 70.0);
   MuscleRigState state = rig.makeState();
   rig.evaluate(pose, state);
