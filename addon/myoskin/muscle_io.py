@@ -230,7 +230,8 @@ def update_wrap_display(arm_obj, item):
 
 def fit_joint_wrap(arm_obj, item):
     """A joint wrap's sphere shrinks to 0.8 of the nearer locator's distance when a locator was moved into
-    it (the core refuses an end inside the sphere). Returns True when the radius changed."""
+    it (the core refuses an end inside the sphere). It only shrinks: moving the locator out again keeps the
+    smaller sphere (set Wrap Radius to grow it). Returns True when the radius changed."""
     if item.wrap_type != 'joint' or item.wrap_bone not in arm_obj.data.bones:
         return False
     centre = np.array(arm_obj.data.bones[item.wrap_bone].head_local, dtype=np.float64)

@@ -28,15 +28,17 @@ namespace myoskin {
 
 struct MuscleRigOptions {
   int jointsOverride = 0;        // > 0: use this many joints per muscle instead of Muscle::joints
-  // Turn the carried frames about the path by a linearly growing share of the twist between the frame
-  // carried to the insertion and the frame the insertion bone carries there (like twist bones), so that
-  // a forearm's roll reaches the skin on the muscle; false: frames anchored to the origin bone only.
+  // Turn the carried frames about the path by a share of the twist between the frame carried to the
+  // insertion and the frame the insertion bone carries there (like twist bones), so that a forearm's roll
+  // reaches the skin on the muscle; false: frames anchored to the origin bone only.
   // The twist is taken in (-180, 180] degrees: a roll of the insertion past 180 degrees wraps round.
   bool distributeTwist = true;
   // How the twist is shared along the path: true (default) = as the skeleton shares it, by where each station
   // lies at rest (share d_o^2 / (d_o^2 + d_i^2) of its distances to the origin and insertion bones: none along
-  // the origin bone, all along the insertion bone, a ramp across the joint), so skin the skeleton moves rigidly
-  // with the insertion bone is not blended against a half-twisted muscle joint; false = linear in arc length.
+  // the origin bone, all along the insertion bone, a ramp across the joint; the end stations exactly 0 and 1),
+  // so skin the skeleton moves rigidly with the insertion bone is not blended against a half-twisted muscle
+  // joint; false = linear in arc length. Bones between the two ends are not looked at: along a middle bone of
+  // a two-joint muscle the share is about a half.
   bool twistFollowsBones = true;
 };
 

@@ -44,10 +44,12 @@ struct HybridWeightOptions {
   // In the skeleton's joint crease the muscles give way to its blend: each muscle's weight (before smoothing)
   // is multiplied by 1 - creaseRelief * beta, beta = 2 (1 - the vertex's largest bone share) clamped to [0, 1]
   // (0 on skin one bone moves rigidly, 1 at an even two-bone blend), so a muscle bowstringing across a flexed
-  // joint does not lift the crease (0 = off). Measured (synthetic arm, seed 2, whose brachialis crosses the
-  // elbow): elbow region at 35 / 70 degrees +7.1 / +12.2 % with 0, +5.1 / +7.3 % with 0.5, +3.3 / +4.0 % with 1
-  // (plain LBS -4.4 / -13.9 %); MakeHuman's re-attached biceps bulges 2.71 / 2.30 / 1.89 mm. 0.5 keeps the bulge.
-  double creaseRelief = 0.5;
+  // joint does not lift the crease (0 = off, the default). Measured (synthetic arm, seed 2, whose brachialis
+  // crosses the elbow): elbow region at 35 / 70 degrees +7.1 / +12.2 % with 0, +5.1 / +7.3 % with 0.5,
+  // +3.3 / +4.0 % with 1 (plain LBS -4.4 / -13.9 %). Off by default because any two-bone blend counts as a
+  // crease: on MakeHuman the twist splits (upperarm01/02) and the spine are blended too (beta > 0.5 on 94 % of
+  // upperarm01's skin), so 0.5 takes ~25 % of the biceps' weight where nothing bends (bulge 2.71 -> 2.30 mm).
+  double creaseRelief = 0.0;
   // Smallest muscle weight kept, in [0, 0.25] (0 = keep every weight): a muscle's share of a vertex below
   // minWeight goes back to the bones it came from, and the smaller part of its split between two joints
   // below minWeight goes to the other joint; shares in [c, 2c) ramp linearly from 0 to 2c, so the weights

@@ -208,7 +208,9 @@ Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance,
     std::vector<double> weight(m), next(m);
     for (int it = 0; it < kSupportIterations; ++it) {
       int count = 0;
-      for (int i = 0; i < m; ++i) count += (weight[i] = std::abs(r[i] - base[i]) <= tol ? 1.0 : 0.0) > 0.0;
+      // The Fourier base keeps a small weight on the rest, so a wide gap in its support cannot swing it away.
+      const double outside = harmonics > 0 ? kAboveWeight : 0.0;
+      for (int i = 0; i < m; ++i) count += (weight[i] = std::abs(r[i] - base[i]) <= tol ? 1.0 : outside) == 1.0;
       if (count < 10 || !fitModel(circle, weight, next, true) || !(support(next) >= support(base))) break;
       base.swap(next);
     }
@@ -372,7 +374,9 @@ std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options,
     meanRadius = arc > 0.0 ? meanRadius / arc : 0.0;
   }
   const double threshold = std::max(options.minProtrusion, options.minRelativeProtrusion * meanRadius);
-  const Profile pr = measureProfile(s, options.supportTolerance * threshold, std::max(0, options.baseHarmonics));
+  if (options.baseHarmonics < 0 || options.baseHarmonics > 16)
+    throw InputError("bump options: baseHarmonics must be in [0, 16], got " + std::to_string(options.baseHarmonics));
+  const Profile pr = measureProfile(s, options.supportTolerance * threshold, options.baseHarmonics);
 
   // Significant candidates, strongest first.
   std::vector<Candidate> cands;

@@ -95,7 +95,7 @@ struct MuscleRig::Impl {
   // Start frame of the posed path (rest frame carried by the origin bone, turned onto the tangent).
   Mat3 startFrame(int m, const Pose& pose, const paths::ActionPath& path) const;
   // Twist (radians about the end tangent) from the frame carried to the path's end to the frame the
-  // insertion bone carries there; distributed linearly along the path.
+  // insertion bone carries there; shared along the path by MuscleModel::twistShare.
   double endTwist(int m, const Pose& pose, const paths::ActionPath& path, const Mat3& F0) const;
   bool distributeTwist = true;
   bool twistFollowsBones = true;
@@ -259,6 +259,7 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
       const double dI = (P[j] - detail::closestOnSegment(P[j], ib.head, ib.tail)).squaredNorm();
       mr.twistShare[j] = dO + dI > 1e-30 ? dO / (dO + dI) : 0.5;
     }
+    if (impl->twistFollowsBones && mr.originBone != mr.insertionBone) mr.twistShare.front() = 0.0, mr.twistShare.back() = 1.0;
 
     // Path parameter (fractional station index) and the two stations' local coordinates of a point.
     auto project = [&](const Vec3& v, int& j, double& alpha) {
@@ -392,7 +393,7 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     im.posedPath(m, pose, path);
     const Mat3 F0 = im.startFrame(m, pose, path);
     const double twist = im.endTwist(m, pose, path, F0);
-    // Carried frames turned about their tangent by the share of the end twist at their arc length.
+    // Carried frames turned about their tangent by their station's share of the end twist (twistShare).
     auto twisted = [&](int n, int stride) {  // frames of stations 0, stride, 2 stride, ... (joints: odd ones)
       if (twist == 0.0) return;
       for (int i = 0; i < n; ++i) {

@@ -99,6 +99,10 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       throw InputError("forced region " + std::to_string(r) + " has " + std::to_string(options.forcedRegions[r].size()) +
                        " entries, the skin has " + std::to_string(nv) + " vertices");
 
+  if (options.trunkHarmonics < 0 || options.trunkHarmonics > 16)
+    throw InputError("trunkHarmonics must be in [0, 16], got " + std::to_string(options.trunkHarmonics));
+  if (options.bumps.baseHarmonics < 0 || options.bumps.baseHarmonics > 16)
+    throw InputError("bumps.baseHarmonics must be in [0, 16], got " + std::to_string(options.bumps.baseHarmonics));
   ExtractionResult result;
   ExtractionReport& rep = result.report;
   const Skeleton& sk = character.skeleton;
@@ -238,7 +242,8 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
         w.relative.push_back(meanRadius > 0 ? bumps[b].protrusion / meanRadius : 0.0);
         w.forcedRegion.push_back(forced[b]);
       }
-      if (prof.plane.mirrorAxis && prof.symmetric && options.vertexMask.empty() && forcedVerts.empty()) mirrorSectionBumps(w);
+      if (prof.plane.mirrorAxis && prof.symmetric && w.split && options.vertexMask.empty() && forcedVerts.empty())
+        mirrorSectionBumps(w);  // split along the axis: every bump lies on one side of it
       w.ok = true;
     } catch (const std::exception& ex) {
       w.reason = std::string("triangulation/bumps failed: ") + ex.what();

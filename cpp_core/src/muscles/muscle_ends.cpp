@@ -202,7 +202,10 @@ Muscle buildMuscleEnds(const MuscleChain& chain, const std::vector<SectionBumps>
                    insertionBones = boneAndNeighbours(skeleton, chain.bone);
   for (int b : boneAndNeighbours(skeleton, sections[chain.links.front().section].plane.bone)) originBones.push_back(b);
   for (int b : boneAndNeighbours(skeleton, sections[chain.links.back().section].plane.bone)) insertionBones.push_back(b);
-  return buildEnds(s, originBones, insertionBones, skeleton, options);
+  // No default joint wrap: a trunk muscle's ends span spine joints the trunk bends through smoothly.
+  EndOptions trunk = options;
+  trunk.jointWrapFraction = 0.0;
+  return buildEnds(s, originBones, insertionBones, skeleton, trunk);
 }
 
 
