@@ -180,8 +180,11 @@ def test_extract_on_makehuman_glb():
         src = state.muscles[sided[0]]
         # read before mirroring: replacing an existing mirror twin shifts the list under `src`
         src_bone, a = src.origin_bone, np.array(src.origin_locator.location)
+        src_name, src_enabled = src.name, src.enabled
         assert bpy.ops.myoskin.mirror_muscle() == {'FINISHED'}
         new = state.muscles[state.active_index]
+        assert new.enabled == src_enabled
+        assert src_name in [m.name for m in state.muscles]  # the source is kept, only an old mirror is replaced
         assert new.origin_bone == bpy.utils.flip_name(src_bone)
         b = np.array(new.origin_locator.location)
         assert abs(a[0] + b[0]) < 1e-6 and np.abs(a[1:] - b[1:]).max() < 1e-6

@@ -197,15 +197,16 @@ class MYOSKIN_OT_mirror_muscle(_MuscleOperator, bpy.types.Operator):
         item = state.muscles[state.active_index]
         mirrored = muscle_io.mirrored_muscle(arm, item)
         mirrored.joints, mirrored.bulge = item.joints, item.bulge
+        source, enabled = item.name, item.enabled  # read now: removing a mirror twin shifts the list under `item`
         existing, _ = muscle_io.find_item(arm, mirrored.name)
         if existing >= 0:
             muscle_io.remove_muscle(arm, existing)
         new = muscle_io.add_muscle(arm, mirrored)
-        new.enabled = item.enabled
+        new.enabled = enabled
         state.active_index = len(state.muscles) - 1
         state.dirty = state.bound
         muscle_io.sync_text(arm)
-        return f"Mirrored {item.name} to {new.name}"
+        return f"Mirrored {source} to {new.name}"
 
 
 class MYOSKIN_OT_select_muscle(_MuscleOperator, bpy.types.Operator):
