@@ -25,15 +25,41 @@ struct Loop2 {
   double area = 0.0;  // signed
 };
 
+// Signed area of a closed polygon (counter-clockwise positive).
+double signedArea(const std::vector<Vec2>& pts) {
+  double area = 0.0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const Vec2 &a = pts[i], &b = pts[(i + 1) % pts.size()];
+    area += 0.5 * (a.x() * b.y() - b.x() * a.y());
+  }
+  return area;
+}
+
+// Length of a closed polygon.
+double loopLength(const std::vector<Vec2>& pts) {
+  double length = 0.0;
+  for (size_t i = 0; i < pts.size(); ++i) length += (pts[(i + 1) % pts.size()] - pts[i]).norm();
+  return length;
+}
+
+// Appends the straight chord from a to b (both ends excluded), about `spacing` apart, to a clipped loop: its
+// points lie on mesh edge `ea` over the first half and `eb` over the second, and off the skin. The ends are
+// copies: they may be points of `pts`, which grows.
+void appendChord(const Vec2 a, const Vec2 b, double spacing, std::array<int, 2> ea, std::array<int, 2> eb,
+                 std::vector<Vec2>& pts, std::vector<std::array<int, 2>>& edges, std::vector<char>& skin) {
+  const int steps = std::max(2, static_cast<int>(std::ceil((b - a).norm() / spacing)));
+  for (int k = 1; k < steps; ++k) {
+    pts.push_back(a + (b - a) * (static_cast<double>(k) / steps));
+    edges.push_back(k * 2 < steps ? ea : eb);
+    skin.push_back(0);
+  }
+}
+
 Loop2 toPlane(const detail::PlaneLoop& loop, const CuttingPlane& p) {
   Loop2 l;
   l.edges = loop.edges;
   for (const Vec3& q : loop.points) l.points.emplace_back((q - p.origin).dot(p.xAxis), (q - p.origin).dot(p.yAxis));
-  const size_t n = l.points.size();
-  for (size_t i = 0; i < n; ++i) {
-    const Vec2 &a = l.points[i], &b = l.points[(i + 1) % n];
-    l.area += 0.5 * (a.x() * b.y() - b.x() * a.y());
-  }
+  l.area = signedArea(l.points);
   return l;
 }
 
@@ -177,29 +203,16 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
         return prof;
       }
       // The chord back to the start, about as finely sampled as the skin.
-      const Vec2 a = pts.back(), b = pts.front();
-      const int steps = std::max(2, static_cast<int>(std::ceil((b - a).norm() / std::max(arc / bestLen, 1e-6))));
-      for (int k = 1; k < steps; ++k) {
-        pts.push_back(a + (b - a) * (static_cast<double>(k) / steps));
-        edges.push_back(k * 2 < steps ? edges[bestLen - 1] : edges[0]);
-        skin.push_back(0);
-      }
+      appendChord(pts.back(), pts.front(), std::max(arc / bestLen, 1e-6), edges.back(), edges.front(), pts, edges,
+                  skin);
       loop.points = std::move(pts);
       loop.edges = std::move(edges);
-      double area = 0.0;
-      for (size_t i = 0; i < loop.points.size(); ++i) {
-        const Vec2 &p0 = loop.points[i], &p1 = loop.points[(i + 1) % loop.points.size()];
-        area += 0.5 * (p0.x() * p1.y() - p1.x() * p0.y());
-      }
-      if (!(area > 0)) {
+      if (!(signedArea(loop.points) > 0)) {
         prof.perimeter = perimeter;
         prof.skipReason = "the skin near the shoulder does not bound a region on this plane";
         return prof;
       }
-      perimeter = 0.0;
-      for (size_t i = 0; i < loop.points.size(); ++i)
-        perimeter += (loop.points[(i + 1) % loop.points.size()] - loop.points[i]).norm();
-      onRegion = perimeter;
+      perimeter = onRegion = loopLength(loop.points);
     }
   }
   if (plane.mirrorAxis && skin.empty() && onRegion < o.minRegionShare * perimeter &&
@@ -213,37 +226,22 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
     for (size_t k = 0; k <= n; ++k) {
       const size_t i = (start + k) % n;
       if (!inRegion(i)) continue;
-      if (!pts.empty() && k > 0 && !inRegion((i + n - 1) % n)) {
-        // The chord from the last kept point, sampled about 2 mm apart.
-        const Vec2 a = pts.back(), b = loop.points[i];
-        const int steps = std::max(2, static_cast<int>(std::ceil((b - a).norm() / 0.002)));
-        const std::array<int, 2> ea = edges.back(), eb = loop.edges[i];
-        for (int j = 1; j < steps; ++j) {
-          pts.push_back(a + (b - a) * (static_cast<double>(j) / steps));
-          edges.push_back(j * 2 < steps ? ea : eb);
-          skin.push_back(0);
-        }
-      }
+      if (!pts.empty() && k > 0 && !inRegion((i + n - 1) % n))  // the chord from the last kept point, ~2 mm apart
+        appendChord(pts.back(), loop.points[i], 0.002, edges.back(), loop.edges[i], pts, edges, skin);
       if (k == n) break;
       pts.push_back(loop.points[i]);
       edges.push_back(loop.edges[i]);
       skin.push_back(1);
     }
-    double area = 0.0, arc = 0.0;
-    for (size_t i = 0; i < pts.size(); ++i) {
-      const Vec2 &p0 = pts[i], &p1 = pts[(i + 1) % pts.size()];
-      area += 0.5 * (p0.x() * p1.y() - p1.x() * p0.y());
-      arc += (p1 - p0).norm();
-    }
-    if (pts.size() < 3 || !(area > 0) || !enclosesOrigin(pts)) {
+    if (pts.size() < 3 || !(signedArea(pts) > 0) || !enclosesOrigin(pts)) {
       prof.perimeter = perimeter;
       prof.skipReason = "the trunk's own skin does not bound a region around the spine on this plane (" +
                         std::to_string(static_cast<int>(100 * onRegion / perimeter)) + " % of the loop on it)";
       return prof;
     }
+    perimeter = onRegion = loopLength(pts);
     loop.points = std::move(pts);
     loop.edges = std::move(edges);
-    perimeter = onRegion = arc;
   }
   prof.perimeter = perimeter;
   if (perimeter < o.minPerimeter) {
