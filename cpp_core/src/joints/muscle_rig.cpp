@@ -394,12 +394,10 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     const Mat3 F0 = im.startFrame(m, pose, path);
     const double twist = im.endTwist(m, pose, path, F0);
     // Carried frames turned about their tangent by their station's share of the end twist (twistShare).
-    auto twisted = [&](int n, int stride) {  // frames of stations 0, stride, 2 stride, ... (joints: odd ones)
+    auto twisted = [&](int n, int first, int step) {  // frames of stations first, first + step, ...
       if (twist == 0.0) return;
-      for (int i = 0; i < n; ++i) {
-        const int j = stride > 0 ? i * stride : (2 * i + 1) * mm.jointStride;
-        F[i] = Eigen::AngleAxisd(twist * mm.twistShare[j], F[i].col(1)).toRotationMatrix() * F[i];
-      }
+      for (int i = 0; i < n; ++i)
+        F[i] = Eigen::AngleAxisd(twist * mm.twistShare[first + i * step], F[i].col(1)).toRotationMatrix() * F[i];
     };
     const double lambda = std::clamp(path.length / mm.restLength, kMinStretch, kMaxStretch);
     const double mu = joints::bulgeMu(mm.bulge, lambda);
@@ -411,7 +409,7 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     // Joints: frames at their stations only.
     for (int k = 0; k < mm.joints; ++k) sig[k] = path.length * ((2 * k + 1) * mm.jointStride) / (S - 1);
     paths::framesAt(path, F0, sig, mm.joints, F, P);
-    twisted(mm.joints, 0);
+    twisted(mm.joints, mm.jointStride, 2 * mm.jointStride);  // joint k on station (2k + 1) * jointStride
     for (int k = 0; k < mm.joints; ++k) {
       const int j = (2 * k + 1) * mm.jointStride;
       const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);
@@ -429,7 +427,7 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     // Surface: every station, then each vertex blends its two stations.
     for (int j = 0; j < S; ++j) sig[j] = path.length * j / (S - 1);
     paths::framesAt(path, F0, sig, S, F, P);
-    twisted(S, 1);
+    twisted(S, 0, 1);
     for (int j = 0; j < S; ++j) {
       const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);
       F[j].col(0) *= s;
