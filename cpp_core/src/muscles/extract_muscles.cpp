@@ -314,7 +314,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       ++rep.droppedShort;
       continue;
     }
-    const bool trunk = c.family == "abdomen" || c.family == "neck";
+    const bool trunk = detail::trunkFamily(c.family);
     double floor = trunk ? options.minRelativeTrunk : options.minRelative;
     if (!trunk && options.continuousFraction > 0 && evidence * evidenceScale >= options.continuousEvidence &&
         continuousChain(c, sections, options.magnitudeFraction))

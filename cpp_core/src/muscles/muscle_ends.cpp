@@ -196,7 +196,7 @@ Muscle buildMuscleEnds(const MuscleChain& chain, const std::vector<SectionBumps>
   }
   if (s.empty()) throw InputError("buildMuscleEnds: a muscle needs at least one section");
   if (chain.bone < 0 || chain.bone >= skeleton.numBones()) throw InputError("buildMuscleEnds: bad bone index");
-  if (chain.family != "abdomen" && chain.family != "neck") return buildMuscleEnds(s, chain.bone, skeleton, options);
+  if (!detail::trunkFamily(chain.family)) return buildMuscleEnds(s, chain.bone, skeleton, options);
   // A trunk chain climbs past several spine bones: each end attaches near its own end section's bone.
   std::vector<int> originBones = boneAndNeighbours(skeleton, chain.bone),
                    insertionBones = boneAndNeighbours(skeleton, chain.bone);

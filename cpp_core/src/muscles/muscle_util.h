@@ -2,11 +2,15 @@
 #pragma once
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "myoskin/types.h"
 
 namespace myoskin::detail {
+
+// The trunk's plane families (across the whole body): they get their own height floor and attachments.
+inline bool trunkFamily(const std::string& family) { return family == "abdomen" || family == "neck"; }
 
 // Closest point to p on segment [a, b]; t receives the segment parameter in [0, 1].
 inline Vec3 closestOnSegment(const Vec3& p, const Vec3& a, const Vec3& b, double* t = nullptr) {
