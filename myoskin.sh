@@ -7,16 +7,22 @@
 #   ./myoskin.sh build               setup + build only
 #   ./myoskin.sh setup               install missing Debian packages only
 # Environment: MYOSKIN_BUILD_DIR (default ./build), MYOSKIN_JOBS (default: number of cores),
-#   MYOSKIN_SHARED_DIR (default ../shared).
+#   MYOSKIN_SHARED_DIR (default ../shared), MYOSKIN_MATRIX (full: every Blender of the matrix, the default;
+#   host: the host's Debian Blender only), MYOSKIN_TEST_ARGS (extra ctest arguments, e.g. "-L blender-5.2").
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 BUILD="${MYOSKIN_BUILD_DIR:-$ROOT/build}"
 JOBS="${MYOSKIN_JOBS:-$(nproc)}"
 PACKAGES=(g++ cmake make libcgal-dev libopenmesh-dev libglm-dev libeigen3-dev pybind11-dev python3-dev
           libtinygltf-dev nlohmann-json3-dev libtbb-dev libgtest-dev libbenchmark-dev python3-numpy
-          python3-pytest blender xvfb)
+          python3-pytest python3-venv python3-pip blender xvfb xauth debootstrap)
+# Debian's cmake: a pip-installed CMake 4 may come first on PATH.
+CMAKE=/usr/bin/cmake; [ -x "$CMAKE" ] || CMAKE=cmake
+CTEST=/usr/bin/ctest; [ -x "$CTEST" ] || CTEST=ctest
 
 log() { printf '\033[1mmyoskin:\033[0m %s\n' "$*"; }
+# shellcheck source=tools/matrix.sh
+. "$ROOT/tools/matrix.sh"
 
 # Install whatever Debian packages are missing (as root, or through sudo).
 setup() {
@@ -24,7 +30,7 @@ setup() {
   for p in "${PACKAGES[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
-  if [ ${#missing[@]} -eq 0 ]; then log "all Debian packages present"; return; fi
+  if [ ${#missing[@]} -eq 0 ]; then log "all Debian packages present"; matrix_setup; return; fi
   log "installing missing Debian packages: ${missing[*]}"
   local sudo=""
   if [ "$(id -u)" -ne 0 ]; then
@@ -33,18 +39,24 @@ setup() {
   fi
   $sudo apt-get update -q
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
+  matrix_setup
 }
 
 # Configure once (Release, Blender's Python), then build incrementally.
+# The other Debian release's core (its Python) is built in its chroot, in build/<suite>.
 build() {
+  mkdir -p "$BUILD"
+  matrix_write_cmake
   if [ ! -f "$BUILD/CMakeCache.txt" ]; then
-    cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3
+    "$CMAKE" -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3
   fi
-  cmake --build "$BUILD" -j "$JOBS"
+  "$CMAKE" --build "$BUILD" -j "$JOBS"
+  matrix_build
 }
 
 run_tests() {
-  ctest --test-dir "$BUILD" --output-on-failure -j "$JOBS" --timeout 1500
+  # shellcheck disable=SC2086
+  "$CTEST" --test-dir "$BUILD" --output-on-failure -j "$JOBS" --timeout 1500 ${MYOSKIN_TEST_ARGS:-}
 }
 
 run_demo() {

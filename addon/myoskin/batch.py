@@ -14,6 +14,7 @@ print one line "myoskin batch: error: ..." and exit with status 1 (with --python
 exceptions too).
 """
 import argparse
+import importlib
 import os
 import sys
 import time
@@ -47,14 +48,39 @@ def log(message, start=[time.perf_counter()]):  # noqa: B006 (process start)
     print(f"[myoskin batch {time.perf_counter() - start[0]:6.1f} s] {message}", flush=True)
 
 
+def _is_myoskin(name):
+    return name == "myoskin" or name.endswith(".myoskin")
+
+
+def addon_package():
+    """The add-on's package name, never assumed: "myoskin" (a user-scripts folder or the legacy zip) or
+    "bl_ext.<repository>.myoskin" (an extension). Prefers an enabled one, then the one holding this file."""
+    enabled = sorted(n for n in bpy.context.preferences.addons.keys() if _is_myoskin(n))
+    if enabled:
+        return enabled[0]
+    import addon_utils
+    here = os.path.dirname(os.path.abspath(__file__))
+    found = sorted((m.__name__, os.path.dirname(os.path.abspath(m.__file__)))
+                   for m in addon_utils.modules() if _is_myoskin(m.__name__))
+    beside = [name for name, folder in found if folder == here]
+    return (beside or [name for name, _ in found] or ["myoskin"])[0]
+
+
+def addon(submodule):
+    """A submodule of the enabled add-on (e.g. addon("core_loader"))."""
+    return importlib.import_module(f"{addon_package()}.{submodule}")
+
+
 def ensure_addon():
     import addon_utils
-    if "myoskin" not in bpy.context.preferences.addons:
+    package = addon_package()
+    if package not in bpy.context.preferences.addons:
         try:
-            addon_utils.enable("myoskin", default_set=True, handle_error=lambda e: (_ for _ in ()).throw(e))
+            addon_utils.enable(package, default_set=True, handle_error=lambda e: (_ for _ in ()).throw(e))
         except Exception as e:  # noqa: BLE001
-            fail(f"cannot enable the myoskin add-on ({e}): set BLENDER_USER_SCRIPTS=<build>/blender_scripts")
-    from myoskin import core_loader
+            fail(f"cannot enable the myoskin add-on ({e}): install the extension, or set "
+                 f"BLENDER_USER_SCRIPTS=<build>/blender_scripts")
+    core_loader = addon("core_loader")
     if not core_loader.available():
         fail(core_loader.status().message)
 
@@ -67,17 +93,15 @@ def open_input(path):
     if ext == ".blend":
         bpy.ops.wm.open_mainfile(filepath=path)
     elif ext in (".glb", ".gltf"):
-        from myoskin.operators.rig import numpy_bool_for_gltf
         bpy.ops.wm.read_homefile(use_empty=True)
-        numpy_bool_for_gltf()
-        bpy.ops.import_scene.gltf(filepath=path)
+        addon("gltf_io").import_gltf(path)
     else:
         fail(f"unsupported input {path}: give a .blend, .glb or .gltf")
     log(f"opened {path}")
 
 
 def find_skin(name):
-    from myoskin import blender_io
+    blender_io = addon("blender_io")
     if name:
         obj = bpy.data.objects.get(name)
         if obj is None:
@@ -100,6 +124,26 @@ def run_op(op, **kwargs):
         fail(f"{op.idname()} returned {result}")
 
 
+def writable_target(path):
+    """None when `path` can be written, else why not."""
+    folder = os.path.dirname(path) or "."
+    if not os.path.isdir(folder):
+        return f"folder {folder} does not exist"
+    if not os.access(folder, os.W_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
+        return "permission denied"
+    return None
+
+
+def save(path):
+    problem = writable_target(path)
+    if problem:
+        fail(f"cannot save {path}: {problem}")
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=path)
+    except RuntimeError as e:
+        fail(f"cannot save {path}: {str(e).replace('Error: ', '').strip()}")
+
+
 def parse_range(text):
     try:
         a, b = (int(x) for x in text.split("-"))
@@ -112,12 +156,15 @@ def parse_range(text):
 
 def main(argv):
     args = parse_args(argv)
+    for target in (args.output, args.pc2, args.gltf):
+        if target and writable_target(os.path.abspath(target)):
+            fail(f"cannot save {os.path.abspath(target)}: {writable_target(os.path.abspath(target))}")
     ensure_addon()
     if args.input:
         open_input(args.input)
     skin = find_skin(args.object)
     bpy.context.view_layer.objects.active = skin
-    state = __import__("myoskin.blender_io", fromlist=["x"]).find_armature(skin).myoskin
+    state = addon("blender_io").find_armature(skin).myoskin
     if args.command == "extract":
         if state.bound:
             run_op(bpy.ops.myoskin.unbind)
@@ -140,7 +187,7 @@ def main(argv):
         run_op(bpy.ops.myoskin.export_gltf, filepath=os.path.abspath(args.gltf))
         log(f"wrote {args.gltf}")
     if args.output:
-        bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.output))
+        save(os.path.abspath(args.output))
         log(f"saved {args.output}")
 
 

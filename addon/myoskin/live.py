@@ -28,7 +28,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
-from . import core_loader
+from . import anim_compat, core_loader
 
 _cache = {}     # armature name -> LiveRig
 _busy = False
@@ -271,12 +271,13 @@ class PredictionPlan:
     muted, a rotation mode, the curve order) makes the prediction differ from the evaluated pose, and the
     post handlers then drop the plan."""
 
-    def __init__(self, arm_obj, live, action):
+    def __init__(self, arm_obj, live, anim):
         from bpy.utils import escape_identifier
         pose_bones = arm_obj.pose.bones
         index = live.skeleton_indices(pose_bones)
-        self.action = action.as_pointer() if action is not None else 0
-        self.fcurve_count = len(action.fcurves) if action is not None else 0
+        fcurves = anim_compat.object_fcurves(anim)
+        self.action = anim_compat.action_key(anim)
+        self.fcurve_count = len(fcurves)
         bones = [pose_bones[int(k)] for k in index]
         self.modes = [ROTATION_MODES[pb.rotation_mode] for pb in bones]  # the core's (Blender's) codes
         rotation = [ROTATION_CHANNEL.get(pb.rotation_mode, "rotation_euler") for pb in bones]
@@ -294,16 +295,14 @@ class PredictionPlan:
             paths[path + "scale"] = (i, "scale")
             paths[path + prop] = (i, prop)
         self.curves = []  # (F-curve index in the Action, target array, bone position, component)
-        if action is not None:
-            for c, fc in enumerate(action.fcurves):
-                hit = paths.get(fc.data_path)
-                if hit is not None and not fc.mute and 0 <= fc.array_index < CHANNELS[hit[1]]:
-                    self.curves.append((c, target.get(hit[1], self.rotation), hit[0], fc.array_index))
+        for c, fc in enumerate(fcurves):
+            hit = paths.get(fc.data_path)
+            if hit is not None and not fc.mute and 0 <= fc.array_index < CHANNELS[hit[1]]:
+                self.curves.append((c, target.get(hit[1], self.rotation), hit[0], fc.array_index))
 
-    def valid_for(self, action):
-        if action is None:
-            return self.action == 0
-        return self.action == action.as_pointer() and self.fcurve_count == len(action.fcurves)
+    def valid_for(self, anim):
+        return (self.action == anim_compat.action_key(anim)
+                and self.fcurve_count == len(anim_compat.object_fcurves(anim)))
 
 
 def predicted_pose(arm_obj, live, frame):
@@ -316,12 +315,11 @@ def predicted_pose(arm_obj, live, frame):
     if not live.predictable:
         return None
     anim = arm_obj.animation_data
-    action = anim.action if anim is not None else None
     plan = live.plan
-    if plan is None or not plan.valid_for(action):
-        plan = live.plan = PredictionPlan(arm_obj, live, action)
+    if plan is None or not plan.valid_for(anim):
+        plan = live.plan = PredictionPlan(arm_obj, live, anim)
     if plan.curves:
-        fcurves = action.fcurves
+        fcurves = anim_compat.object_fcurves(anim)
         for c, values, i, k in plan.curves:
             values[i, k] = fcurves[c].evaluate(frame)
     return core_loader.core().pose_from_channels(live.character, plan.location, plan.modes, plan.rotation,
@@ -423,13 +421,13 @@ def update_all(scene, depsgraph, armatures, baked):
 
 def set_baked_muted(arm_obj, muted):
     """Mute (live on) or unmute (live off: the baked Action plays) the muscle joints' F-curves."""
-    anim = arm_obj.animation_data
-    if anim is None or anim.action is None:
+    fcurves = anim_compat.object_fcurves(arm_obj.animation_data)
+    if not fcurves:
         return 0
     from . import rig_io
     prefixes = tuple(f'pose.bones["{n}"].' for n in rig_io.muscle_bone_names(arm_obj))
     count = 0
-    for fc in anim.action.fcurves:
+    for fc in fcurves:
         if fc.data_path.startswith(prefixes):
             fc.mute = muted
             count += 1

@@ -91,6 +91,13 @@ def _put_in_layer(edit_bone, arm_data, layer, collection_name):
         edit_bone.layers = [i == layer for i in range(32)]
 
 
+def in_muscle_layer(bone, layer=MUSCLE_LAYER, collection_name=MUSCLE_COLLECTION):
+    """True when `bone` lies in the muscle joints' own layer (3.x) or bone collection (4.x) and no other."""
+    if hasattr(bone, "collections"):  # Blender 4.0+
+        return [c.name for c in bone.collections] == [collection_name]
+    return bool(bone.layers[layer]) and sum(bool(x) for x in bone.layers) == 1
+
+
 def _show_layer(arm_data, layer):
     if not hasattr(arm_data, "collections"):
         layers = list(arm_data.layers)

@@ -23,13 +23,18 @@ SOURCE_DIR = os.environ.get("MYOSKIN_SOURCE_DIR") or os.path.abspath(
 SHARED_DIR = os.environ.get("MYOSKIN_SHARED_DIR") or os.path.abspath(os.path.join(SOURCE_DIR, "..", "shared"))
 
 
+# The add-on's package: "myoskin" from a user-scripts folder, "bl_ext.<repository>.myoskin" as an extension.
+ADDON = os.environ.get("MYOSKIN_ADDON", "myoskin")
+BPY_MAIN = os.path.join(os.path.dirname(os.path.abspath(__file__)), "bpy_main.py")
+
+
 class Skip(Exception):
     """Raise to skip the current test; the message is the reason."""
 
 
 def addon_module(name=""):
     """The add-on package `myoskin` or one of its submodules, as Blender imported them."""
-    full = "myoskin" + ("." + name if name else "")
+    full = ADDON + ("." + name if name else "")
     __import__(full)
     return sys.modules[full]
 
@@ -52,6 +57,20 @@ def operator_error(op, **kwargs):
     return ""
 
 
+def is_bpy_module():
+    """True under the `bpy` module (a Python interpreter), False inside a Blender executable."""
+    return os.environ.get("MYOSKIN_BPY_MODULE") == "1"
+
+
+def blender_command(*args):
+    """The command line that starts another Blender of the same kind in the background with `args`
+    (Blender's own options: FILE.blend, --python-exit-code, -P SCRIPT, -- ...), e.g. for batch.py."""
+    import bpy
+    if is_bpy_module():
+        return [sys.executable, BPY_MAIN, "--factory-startup", *args]
+    return [bpy.app.binary_path, "-b", "--factory-startup", *args]
+
+
 def skip(reason):
     raise Skip(reason)
 
@@ -70,7 +89,7 @@ def collect(namespace):
     return sorted(tests, key=lambda f: f.__code__.co_firstlineno)
 
 
-def enable_addon(name="myoskin"):
+def enable_addon(name=ADDON):
     """Enable the add-on as a user would (listed in the preferences), not only loaded by --addons."""
     import addon_utils
     import bpy

@@ -25,8 +25,7 @@ TMP = tempfile.mkdtemp(prefix="myoskin_test_batch_")
 
 def batch(*args, blend=None):
     """Run the batch script in a fresh Blender; returns (exit code, stdout + stderr)."""
-    cmd = [bpy.app.binary_path, "-b", "--factory-startup"] + ([blend] if blend else []) + \
-          ["--python-exit-code", "1", "-P", BATCH, "--", *args]
+    cmd = runner.blender_command(*([blend] if blend else []), "--python-exit-code", "1", "-P", BATCH, "--", *args)
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=dict(os.environ))
     return done.returncode, done.stdout + done.stderr
 
@@ -66,7 +65,7 @@ def test_batch_blend_extract_bind_bake():
                 if c["target"].get("node") is not None and c["target"]["path"] == "scale"}
     assert muscle_joints <= animated, muscle_joints - animated
     # the result plays the baked muscles with the add-on disabled
-    addon_utils.disable("myoskin", default_set=True)
+    addon_utils.disable(runner.ADDON, default_set=True)
     try:
         bpy.ops.wm.open_mainfile(filepath=out)
         skin = bpy.data.objects[skin_name]
@@ -80,9 +79,8 @@ def test_batch_blend_extract_bind_bake():
             ev.vertices.foreach_get("co", co)
             positions.append(co.reshape(-1, 3))
     finally:
-        addon_utils.enable("myoskin", default_set=True)
-    from myoskin import core_loader
-    frames = core_loader.core().read_pc2(pc2)["frames"]
+        addon_utils.enable(runner.ADDON, default_set=True)
+    frames = runner.core().read_pc2(pc2)["frames"]
     err = max(float(np.abs(frames[k] - positions[k]).max()) for k in range(6))
     assert err < 1e-5, f"baked playback without the add-on differs from the core's PC2 by {err:.3g} m"
     assert np.abs(positions[5] - positions[0]).max() > 0.05
@@ -109,6 +107,12 @@ def test_batch_errors():
     assert code == 1 and "run Extract Muscles first" in log, log
     code, log = batch("extract", "--bind", "--bake", "9-3", blend=src)
     assert code == 1 and "is empty" in log, log
+    unwritable = os.path.join(TMP, "no_such_folder", "out.blend")
+    code, log = batch("extract", "-o", unwritable, blend=src)
+    assert code == 1 and f"myoskin batch: error: cannot save {unwritable}" in log and "Traceback" not in log, log
+    code, log = batch("extract", "--pc2", os.path.join(TMP, "no_such_folder", "x.pc2"), "--bake", "1-2",
+                      "--bind", blend=src)
+    assert code == 1 and "myoskin batch: error:" in log and "Traceback" not in log, log
 
 
 runner.run()

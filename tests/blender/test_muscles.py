@@ -9,7 +9,6 @@ import json
 import os
 import sys
 import tempfile
-import warnings
 
 import bpy
 import numpy as np
@@ -155,11 +154,7 @@ def test_extract_options_and_limits():
 def test_extract_on_makehuman_glb():
     path = runner.shared_file(MUSCULAR)
     clear_scene()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        if not hasattr(np, "bool"):
-            np.bool = bool
-    bpy.ops.import_scene.gltf(filepath=path)
+    module("gltf_io").import_gltf(path)
     skin = [o for o in bpy.context.scene.objects if o.type == 'MESH'][0]
     bpy.context.view_layer.objects.active = skin
     assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}

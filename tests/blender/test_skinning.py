@@ -12,7 +12,6 @@ Run (ctest does this with the environment set):
 import os
 import sys
 import tempfile
-import warnings
 
 import bpy
 import numpy as np
@@ -21,7 +20,7 @@ sys.path.insert(0, os.path.join(os.environ.get("MYOSKIN_SOURCE_DIR", os.path.joi
     os.path.abspath(__file__)), "..", "..")), "tests", "blender"))
 import blender_test_runner as runner  # noqa: E402
 
-from myoskin import blender_io, core_loader, rig_io  # noqa: E402
+blender_io, core_loader, rig_io = (runner.addon_module(n) for n in ("blender_io", "core_loader", "rig_io"))
 
 MUSCULAR = "characters/makehuman_muscular_male/makehuman_muscular_male.glb"
 TOLERANCE = 1e-5  # Blender (float32) against the core, relative to the character's bounding-box diagonal
@@ -59,11 +58,7 @@ def makehuman_in_blender():
     """The MakeHuman character through Blender's glTF importer, read back as a core character."""
     path = runner.shared_file(MUSCULAR)
     clear_scene()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        if not hasattr(np, "bool"):  # Debian's Blender 3.4 importer needs it with numpy >= 1.24
-            np.bool = bool
-    bpy.ops.import_scene.gltf(filepath=path)
+    runner.addon_module("gltf_io").import_gltf(path)
     mesh_obj = next(o for o in bpy.context.scene.objects if o.type == 'MESH')
     arm_obj = blender_io.find_armature(mesh_obj)
     for mod in mesh_obj.modifiers:  # the comparison needs the linear (non preserve-volume) modifier
@@ -177,7 +172,7 @@ def check_extra_joint_rig(arm_obj, mesh_obj, character, poses):
     for n, p in zip(jnames, parents):
         b = bones[n]
         assert b.use_deform and b.bbone_segments == 1 and not b.use_envelope_multiply and b.parent.name == p
-        assert b.layers[rig_io.MUSCLE_LAYER] and not b.layers[0]
+        assert rig_io.in_muscle_layer(b)
     combined = list(character.bone_names) + jnames
     rig_io.write_combined_weights(mesh_obj, combined, joints, weights)
     errors = []

@@ -4,13 +4,12 @@ export glTF with the helper bones, bake the skin to a PC2 cache through the core
 Small: convert data (blender_io, rig_io, muscle_io), call the core, report."""
 import json
 import os
-import warnings
 
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
-from .. import blender_io, core_loader, live, muscle_io, rig_io
+from .. import blender_io, core_loader, gltf_io, live, muscle_io, rig_io
 from .muscles import _MuscleOperator, require_weights, resolve_extracted, resolve_rig
 from ..state import rig_state
 
@@ -228,14 +227,6 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
                 f"(live update off: the Action plays; turn it on after editing the animation)")
 
 
-def numpy_bool_for_gltf():
-    """Debian's Blender 3.4 glTF add-on uses numpy.bool, removed in numpy 1.24 (DESIGN.md section 2)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        if not hasattr(np, "bool"):
-            np.bool = bool
-
-
 class MYOSKIN_OT_export_gltf(_MuscleOperator, bpy.types.Operator):
     """Export the skin and its armature, muscle-joint helper bones included, to glTF (with the Actions)"""
     bl_idname = "myoskin.export_gltf"
@@ -250,12 +241,9 @@ class MYOSKIN_OT_export_gltf(_MuscleOperator, bpy.types.Operator):
         if not path or path.endswith(os.sep):
             raise ValueError("Give a file name for the glTF export")
         os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
-        numpy_bool_for_gltf()
         for obj in context.view_layer.objects:
             obj.select_set(obj in (skin, arm))
-        bpy.ops.export_scene.gltf(filepath=path, export_format='GLTF_SEPARATE' if path.endswith(".gltf")
-                                  else 'GLB', use_selection=True, export_animations=True, export_skins=True,
-                                  export_def_bones=True)
+        gltf_io.export_gltf(path)
         return f"Exported {skin.name} + {arm.name} ({len(arm.data.bones)} bones) to {path}"
 
 
