@@ -40,14 +40,15 @@ def parse_args():
 
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from scene_setup import (add_sun, empty_scene, frame_camera, muscle_material, render_still,  # noqa: E402
-                         require_addon, setup_render, skin_material)
+from scene_setup import (add_sun, addon_module, empty_scene, frame_camera, muscle_material,  # noqa: E402
+                         render_still, require_addon, setup_render, use_skin_material)
 
 
 def addon():
     """The add-on's modules, or a clear exit when Blender was started without it."""
     core_loader = require_addon("demo.py")
-    from myoskin import blender_io, muscle_io, preferences, truth
+    blender_io, muscle_io, preferences, truth = (addon_module(n) for n in ("blender_io", "muscle_io",
+                                                                          "preferences", "truth"))
     return blender_io, core_loader, preferences, truth, muscle_io
 
 
@@ -86,7 +87,7 @@ def main():
     empty_scene()
     scene = bpy.context.scene
     arm_obj, mesh_obj = blender_io.character_to_blender(character, "SyntheticArm")
-    mesh_obj.data.materials.append(skin_material())
+    use_skin_material(mesh_obj)
     arm_obj.hide_render = True
     # The ground truth as tubes, kept in the .blend for comparison (hidden in the renders).
     tubes = blender_io.truth_to_curves(truth, armature_obj=arm_obj)

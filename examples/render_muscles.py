@@ -19,8 +19,8 @@ import bpy
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from scene_setup import (add_sun, empty_scene, frame_camera, muscle_material, render_still,  # noqa: E402
-                         require_addon, setup_render, skin_material)
+from scene_setup import (add_sun, addon_module, empty_scene, frame_camera, muscle_material,  # noqa: E402
+                         render_still, require_addon, setup_render, use_skin_material)
 
 
 def parse_args():
@@ -38,9 +38,12 @@ def log(message, start=[time.perf_counter()]):  # noqa: B006 (process start time
 
 
 def mesh_object(name, vertices, triangles, material, parent):
-    from myoskin import blender_io
-    obj = bpy.data.objects.new(name, blender_io._new_mesh(name, vertices, triangles))
-    obj.data.materials.append(material)
+    """`material`: a material, or None for the translucent skin."""
+    obj = bpy.data.objects.new(name, addon_module("blender_io")._new_mesh(name, vertices, triangles))
+    if material is None:
+        use_skin_material(obj)
+    else:
+        obj.data.materials.append(material)
     obj.parent = parent
     bpy.context.scene.collection.objects.link(obj)
     return obj
@@ -64,7 +67,7 @@ def render_character(core, path, out, args):
     if path.lower().endswith((".glb", ".gltf")):  # glTF is Y-up, Blender Z-up
         root.rotation_euler = (np.pi / 2, 0.0, 0.0)
     mesh_object(f"{name}_skin", np.asarray(character.vertices), np.asarray(character.triangles),
-                skin_material(), root)
+                None, root)
     red = muscle_material()
     for m in muscles:
         mesh_object(m.name, np.asarray(m.surface_vertices), np.asarray(m.surface_triangles), red, root)

@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Scene helpers shared by the example scripts (run inside Blender): empty scene, translucent skin and
 muscle materials, an orthographic camera fitted to points, a sun, Cycles CPU render settings."""
+import importlib
 import sys
 
 import bpy
@@ -8,10 +9,16 @@ import numpy as np
 from mathutils import Vector
 
 
+def addon_module(name):
+    """A module of the enabled add-on, whatever its package: "myoskin" or "bl_ext.<repository>.myoskin"."""
+    enabled = sorted(n for n in bpy.context.preferences.addons.keys() if n == "myoskin" or n.endswith(".myoskin"))
+    return importlib.import_module(f"{(enabled or ['myoskin'])[0]}.{name}")
+
+
 def require_addon(prog):
     """The add-on's core_loader with its compiled core loaded, or a clear exit saying what to do."""
     try:
-        from myoskin import core_loader
+        core_loader = addon_module("core_loader")
     except ImportError:
         sys.exit(f"{prog}: the Myoskin add-on is not importable: run Blender with "
                  "BLENDER_USER_SCRIPTS=<build>/blender_scripts and --addons myoskin (./myoskin.sh does)")
@@ -38,8 +45,11 @@ def skin_material():
     mat = bpy.data.materials.new("Myoskin Skin")
     mat.use_nodes = True
     mat.diffuse_color = (0.85, 0.62, 0.5, 0.35)
-    mat.blend_method = 'BLEND'  # Eevee/viewport; Cycles uses the node tree
-    mat.shadow_method = 'NONE'
+    if hasattr(mat, "surface_render_method"):  # EEVEE Next (4.2+); Cycles uses the node tree
+        mat.surface_render_method = 'BLENDED'
+    else:
+        mat.blend_method = 'BLEND'
+        mat.shadow_method = 'NONE'  # from 4.2 on an object setting: see use_skin_material
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     nodes.clear()
     out = nodes.new("ShaderNodeOutputMaterial")
@@ -59,6 +69,13 @@ def skin_material():
     links.new(bsdf.outputs["BSDF"], mix.inputs[2])
     links.new(mix.outputs["Shader"], out.inputs["Surface"])
     return mat
+
+
+def use_skin_material(obj):
+    """Give `obj` the translucent skin material; it casts no shadow (Object.visible_shadow from 4.2)."""
+    obj.data.materials.append(skin_material())
+    if hasattr(obj, "visible_shadow"):
+        obj.visible_shadow = False
 
 
 def muscle_material():

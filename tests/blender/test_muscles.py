@@ -424,17 +424,18 @@ def test_file_opens_without_the_addon():
     path = os.path.join(TMP, "noaddon.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
     import addon_utils
-    addon_utils.disable("myoskin", default_set=True)
+    addon_utils.disable(runner.ADDON, default_set=True)
     try:
         bpy.ops.wm.open_mainfile(filepath=path)
         arm = bpy.data.objects[arm_name]
-        raw = arm["myoskin"]
+        # Blender 5.0+ keeps bpy.props data apart from the user's custom properties
+        raw = (arm.bl_system_properties_get() if hasattr(arm, "bl_system_properties_get") else arm)["myoskin"]
         assert len(raw["muscles"]) == n
         text = bpy.data.texts[f"{arm.name}.muscles.json"].as_string()
         assert len(json.loads(text)["muscles"]) == n
         assert len(bpy.data.collections["Muscles"].objects) >= n
     finally:
-        addon_utils.enable("myoskin", default_set=True)
+        addon_utils.enable(runner.ADDON, default_set=True)
     bpy.ops.wm.open_mainfile(filepath=path)
     assert len(bpy.data.objects[arm_name].myoskin.muscles) == n
 
