@@ -4,7 +4,8 @@
 #   ./myoskin.sh test                setup + build + every test tier (C++, Python, Blender) through ctest
 #   ./myoskin.sh render-muscles [OUTPUT_DIR]  extract + render the MakeHuman characters' muscles -> out/muscles
 #   ./myoskin.sh bench               setup + build + the speed benchmarks (printed, never asserted)
-#   ./myoskin.sh build               setup + build only
+#   ./myoskin.sh build               setup + build only (and the packages in build/dist: the Blender 4.2+
+#                                    extension and the legacy zip for 3.4, each with the core for 3.11 and 3.13)
 #   ./myoskin.sh setup               install missing Debian packages only
 # Environment: MYOSKIN_BUILD_DIR (default ./build), MYOSKIN_JOBS (default: number of cores),
 #   MYOSKIN_SHARED_DIR (default ../shared), MYOSKIN_MATRIX (full: every Blender of the matrix, the default;
@@ -23,6 +24,8 @@ CTEST=/usr/bin/ctest; [ -x "$CTEST" ] || CTEST=ctest
 log() { printf '\033[1mmyoskin:\033[0m %s\n' "$*"; }
 # shellcheck source=tools/matrix.sh
 . "$ROOT/tools/matrix.sh"
+# shellcheck source=tools/package.sh
+. "$ROOT/tools/package.sh"
 
 # Install whatever Debian packages are missing (as root, or through sudo).
 setup() {
@@ -52,6 +55,7 @@ build() {
   fi
   "$CMAKE" --build "$BUILD" -j "$JOBS"
   matrix_build
+  package
 }
 
 run_tests() {

@@ -1,9 +1,10 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The one place of the add-on that imports the compiled core `_core`.
 
-The import is guarded (as Animation Nodes does): before importing, build_info.json (written by CMake
-next to the module) must say the module was built for this Blender's Python major.minor, and the
-module file it names must exist. When anything is wrong the add-on still registers; `status()` says
+The import is guarded (as Animation Nodes does): the add-on folder may carry cores for several Pythons
+(a package for Blender 3.4 to 5.x has one for 3.11 and one for 3.13), each with a build_info-X.Y.json
+written by CMake next to it; the one for this Blender's Python major.minor is chosen, and the module
+file it names must exist (Python itself picks the file by its ABI suffix). When anything is wrong the add-on still registers; `status()` says
 exactly what to do and every panel shows it, and `core()` raises CoreUnavailableError with the same text.
 
 No bpy here, so this module can be imported by background scripts and tests alike.
@@ -13,7 +14,7 @@ import os
 import sys
 
 ADDON_DIR = os.path.dirname(os.path.abspath(__file__))
-BUILD_INFO_FILE = "build_info.json"
+BUILD_INFO_FILE = "build_info-{}.json"  # .format(python "X.Y")
 BUILD_COMMAND = "./myoskin.sh build"
 
 
@@ -57,15 +58,16 @@ def blender_python_hint(version=None):
 
 
 def check_build_info(info, addon_dir=ADDON_DIR, python_version=None):
-    """Return None if `info` (the parsed build_info.json, or None when absent) fits this Blender,
+    """Return None if `info` (a parsed build_info-X.Y.json, or None when absent) fits this Blender,
     otherwise the message telling the user what to do. Pure function: tests pass fake dicts."""
     python_version = python_version or running_python_version()
     if info is None:
-        return (f"Myoskin's compiled core is missing (no {BUILD_INFO_FILE} in {addon_dir}): "
+        return (f"Myoskin's compiled core is missing (no {BUILD_INFO_FILE.format(python_version)} in "
+                f"{addon_dir}): "
                 f"run `{BUILD_COMMAND}` and start Blender with "
                 f"BLENDER_USER_SCRIPTS=<repository>/build/blender_scripts")
     if not isinstance(info, dict):
-        return (f"Myoskin's {BUILD_INFO_FILE} in {addon_dir} is unreadable: "
+        return (f"Myoskin's {BUILD_INFO_FILE.format(python_version)} in {addon_dir} is unreadable: "
                 f"rebuild with `{BUILD_COMMAND}`")
     built_for = str(info.get("python_version", "")).strip()
     if built_for != python_version:
@@ -81,9 +83,10 @@ def check_build_info(info, addon_dir=ADDON_DIR, python_version=None):
     return None
 
 
-def read_build_info(addon_dir=ADDON_DIR):
-    """The parsed build_info.json, None when absent, or a string describing why it is unreadable."""
-    path = os.path.join(addon_dir, BUILD_INFO_FILE)
+def read_build_info(addon_dir=ADDON_DIR, python_version=None):
+    """The parsed build_info-X.Y.json for `python_version` (default: this Python), None when absent, or a
+    string describing why it is unreadable."""
+    path = os.path.join(addon_dir, BUILD_INFO_FILE.format(python_version or running_python_version()))
     if not os.path.isfile(path):
         return None
     try:
@@ -93,6 +96,38 @@ def read_build_info(addon_dir=ADDON_DIR):
         return f"{path}: {e}"
 
 
+def available_pythons(addon_dir=ADDON_DIR):
+    """The Python versions ("X.Y", sorted) the add-on folder has a core for."""
+    prefix, suffix = BUILD_INFO_FILE.split("{}")
+    try:
+        names = os.listdir(addon_dir)
+    except OSError:
+        return []
+    found = [n[len(prefix):-len(suffix)] for n in names if n.startswith(prefix) and n.endswith(suffix)]
+    return sorted(found, key=lambda v: tuple(int(x) if x.isdigit() else 0 for x in v.split(".")))
+
+
+def pythons_text(versions):
+    """"3.11", "3.11 and 3.13", "3.10, 3.11 and 3.13"."""
+    return " and ".join(filter(None, [", ".join(versions[:-1]), versions[-1]])) if versions else "(none)"
+
+
+def best_build_info(addon_dir=ADDON_DIR, python_version=None):
+    """The build info for this Python; when there is none, another Python's (so the message can say which
+    Python the core has); None when the folder has no core at all."""
+    python_version = python_version or running_python_version()
+    info = read_build_info(addon_dir, python_version)
+    if info is not None:
+        return info
+    others = available_pythons(addon_dir)
+    if not others:
+        return None
+    info = read_build_info(addon_dir, others[-1])
+    if isinstance(info, dict):
+        info = dict(info, python_version=pythons_text(others))
+    return info
+
+
 _module = None
 _status = CoreStatus(False, "Myoskin's compiled core has not been loaded yet")
 
@@ -100,7 +135,7 @@ _status = CoreStatus(False, "Myoskin's compiled core has not been loaded yet")
 def load():
     """(Re)try to import the core; returns the new CoreStatus. Called once at import of this module."""
     global _module, _status
-    info = read_build_info()
+    info = best_build_info()
     problem = check_build_info(info)
     info = info if isinstance(info, dict) else {}
     module_path = os.path.join(ADDON_DIR, info.get("module", "")) if info.get("module") else ""

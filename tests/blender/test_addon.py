@@ -8,6 +8,7 @@ Run (ctest does this with the environment set):
 import json
 import os
 import sys
+import tempfile
 
 import addon_utils
 import bpy
@@ -121,7 +122,7 @@ def test_core_loads_for_this_python():
     status = loader.status()
     assert status.available, status.message
     running = f"{sys.version_info.major}.{sys.version_info.minor}"
-    with open(os.path.join(loader.ADDON_DIR, "build_info.json"), encoding="utf-8") as f:
+    with open(os.path.join(loader.ADDON_DIR, f"build_info-{running}.json"), encoding="utf-8") as f:
         info = json.load(f)
     assert info["python_version"] == running, info
     assert core().build_info()["python_version"] == running
@@ -132,7 +133,7 @@ def test_core_loads_for_this_python():
 def test_guarded_import_messages():
     loader = addon_module("core_loader")
     running = loader.running_python_version()
-    with open(os.path.join(loader.ADDON_DIR, "build_info.json"), encoding="utf-8") as f:
+    with open(os.path.join(loader.ADDON_DIR, f"build_info-{running}.json"), encoding="utf-8") as f:
         good = json.load(f)
     assert loader.check_build_info(good) is None
 
@@ -149,6 +150,27 @@ def test_guarded_import_messages():
 
     message = loader.check_build_info("garbage")
     assert "./myoskin.sh build" in message, message
+
+
+def test_core_for_another_python_is_named():
+    """An add-on folder whose only core is for another Python: the message names both Pythons; a folder
+    with cores for two Pythons picks this one."""
+    loader = addon_module("core_loader")
+    running = loader.running_python_version()
+    other = "3.11" if running != "3.11" else "3.13"
+    with open(os.path.join(loader.ADDON_DIR, f"build_info-{running}.json"), encoding="utf-8") as f:
+        good = json.load(f)
+    folder = tempfile.mkdtemp(prefix="myoskin_test_pythons_")
+    with open(os.path.join(folder, f"build_info-{other}.json"), "w", encoding="utf-8") as f:
+        json.dump(dict(good, python_version=other), f)
+    assert loader.available_pythons(folder) == [other]
+    message = loader.check_build_info(loader.best_build_info(folder), folder)
+    assert f"built for Python {other} but this Blender runs {running}" in message, message
+    with open(os.path.join(folder, f"build_info-{running}.json"), "w", encoding="utf-8") as f:
+        json.dump(good, f)
+    assert loader.available_pythons(folder) == sorted([other, running], key=lambda v: int(v.split(".")[1]))
+    assert loader.best_build_info(folder)["python_version"] == running
+    assert loader.pythons_text(["3.11", "3.13"]) == "3.11 and 3.13"
 
 
 def test_unavailable_core_keeps_addon_usable():
@@ -169,6 +191,7 @@ def test_unavailable_core_keeps_addon_usable():
             drawn = " ".join(draw_panel(getattr(bpy.types, name)).text().split())  # panels wrap lines
             if name in ("MYOSKIN_PT_main", "MYOSKIN_PT_skin_muscles"):
                 assert "built for Python 3.1" in drawn and "myoskin.sh build" in drawn, drawn
+                assert f"This Blender runs Python {loader.running_python_version()}" in drawn, drawn
         text = operator_error(bpy.ops.myoskin.add_synthetic_arm)
         assert "built for Python 3.1" in text, text
     finally:

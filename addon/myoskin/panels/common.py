@@ -25,6 +25,8 @@ def draw_core_status(layout, context=None):
     box = layout.box()
     box.alert = True
     draw_wrapped(box, status.message, context, icon='ERROR')
+    box.label(text=f"This Blender runs Python {core_loader.running_python_version()}; the add-on has a core "
+                   f"for Python {core_loader.pythons_text(core_loader.available_pythons())}")
     return False
 
 
