@@ -124,7 +124,7 @@ matrix_write_cmake() {
       printf 'myoskin_blender_flavour(blender-%s PYTHON %s BUILD "%s" RUNNER %s COMMAND blender -b --factory-startup --python-exit-code 1 --addons myoskin --python)\n' \
         "$(matrix_suite_blender "$suite")" "$py" "$build" "$runner"
       if matrix_enabled; then
-        printf 'myoskin_blender_flavour(blender-%s PYTHON %s BUILD "%s" RUNNER %s COMMAND "%s/bpy-%s/bin/python" "%s/tests/blender/bpy_main.py" --python)\n' \
+        printf 'myoskin_blender_flavour(blender-%s PYTHON %s BUILD "%s" RUNNER %s COMMAND "%s/bpy-%s/bin/python" "%s/tests/blender/bpy_main.py" --addons myoskin --python-exit-code 1 --python)\n' \
           "${bpyv%.*}" "$py" "$build" "$runner" "$BUILD" "$bpyv" "$ROOT"
       fi
       if [ "$suite" != "${suites[0]}" ]; then

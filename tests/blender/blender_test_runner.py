@@ -17,6 +17,7 @@ import os
 import sys
 import time
 import traceback
+import warnings
 
 SOURCE_DIR = os.environ.get("MYOSKIN_SOURCE_DIR") or os.path.abspath(
     os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
@@ -102,6 +103,8 @@ def run(namespace=None, exit=True):
     skipped); with exit=True ends the process with status 1 on any failure."""
     if namespace is None:
         namespace = inspect.currentframe().f_back.f_globals
+    # Deprecations raised from the add-on's own code (Python 3.13, numpy 2, Blender's API) fail the test.
+    warnings.filterwarnings("error", category=DeprecationWarning, module=r"(bl_ext\.[^.]+\.)?myoskin(\..*)?$")
     enable_addon()
     only = os.environ.get("MYOSKIN_TEST_FILTER", "")
     passed = failed = skipped = 0
