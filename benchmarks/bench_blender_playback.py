@@ -28,6 +28,13 @@ import bpy
 import numpy as np
 
 
+def addon_module(name):
+    """A module of the enabled add-on, whatever its package ("myoskin" or "bl_ext.<repository>.myoskin")."""
+    import importlib
+    enabled = sorted(n for n in bpy.context.preferences.addons.keys() if n == "myoskin" or n.endswith(".myoskin"))
+    return importlib.import_module(f"{(enabled or ['myoskin'])[0]}.{name}")
+
+
 def parse_args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     p = argparse.ArgumentParser(prog="bench_blender_playback.py")
@@ -79,7 +86,7 @@ def add_character(core, blender_io, scene, name, rings, frames):
 
 def main():
     args = parse_args()
-    from myoskin import blender_io, core_loader
+    blender_io, core_loader = (addon_module(n) for n in ("blender_io", "core_loader"))
     core = core_loader.core()
     bpy.ops.wm.read_homefile(use_empty=True)
     bound_scene = bpy.context.scene
@@ -127,4 +134,5 @@ def main():
         print(f"  {name:<22} {1 / best:7.1f} fps  {1000 * best:6.2f} ms/frame   ratio {base / best:5.2f}  "
               f"(baseline {1000 * base:4.2f} ms, median ratio {median:4.2f})")
 
-main()
+if __name__ == "__main__":
+    main()
