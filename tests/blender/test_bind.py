@@ -557,7 +557,7 @@ def test_bind_bad_input():
     # a failure half-way (here: a weight row count that does not fit the skin) leaves the rig as it was
     for m in skin.parent.myoskin.muscles:
         m["enabled"] = True
-    rig_ops = module("operators.rig")
+    rig_ops = module("binding")
     real = rig_ops.hybrid_weights
     rig_ops.hybrid_weights = lambda core, character, rig: tuple(a[:-1] for a in real(core, character, rig))
     try:
