@@ -4,6 +4,15 @@
 A thin layer over the compiled core: blender_io converts Blender data to and from the core's arrays,
 operators/ call the core, panels/ draw. Only core_loader imports the compiled module `_core`; when it
 cannot (missing, or built for another Python), the add-on still registers and the panels say what to do.
+
+Layers, bottom to top; a module imports only from its own layer or below, at module level
+(tests/python/test_addon_layers.py checks it):
+  0  core_loader, anim_compat, gltf_io, runtime (re-entrancy guard, caches, callback dispatcher, errors)
+  1  blender_io, rig_io, truth                   Blender <-> core arrays
+  2  state                                       the properties in the .blend; callbacks -> runtime.dispatch
+  3  muscle_io, binding                          muscle and rig services
+  4  live, handlers                              runtime: application handlers, live update, callback work
+  5  operators/, panels/, preferences, batch     user interface
 """
 
 bl_info = {

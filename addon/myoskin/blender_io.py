@@ -65,6 +65,14 @@ def resolve_skinned_mesh(obj):
     return obj, arm
 
 
+def require_weights(mesh_obj, arm_obj):
+    """ValueError when no vertex group of the mesh names a deform bone of the armature (not skinned)."""
+    bones = arm_obj.data.bones
+    if not any(g.name in bones and bones[g.name].use_deform for g in mesh_obj.vertex_groups):
+        raise ValueError(f"Mesh '{mesh_obj.name}' is not skinned: none of its vertex groups is a deform bone "
+                         f"of '{arm_obj.name}' (weight-paint it or use Parent > With Automatic Weights)")
+
+
 # ------------------------------------------------------------------------------------------------
 # Small numpy helpers
 # ------------------------------------------------------------------------------------------------

@@ -18,20 +18,21 @@ The handlers write ORIGINAL data, so every depsgraph (viewport, F12 / Cycles ren
 render.use_lock_interface on) sees the same joints.
 
 State: nothing is held between calls but a cache keyed by armature name and the bind record's text (rebuilt
-after reload or undo); objects are looked up in bpy.data on every call. Without the add-on the file opens
-and shows the joints as last written (or as baked to the Action).
+after reload or undo), owned by runtime.py (runtime.live_rigs) with the re-entrancy guard every handler
+shares; objects are looked up in bpy.data on every call. A handler that fails reports it through
+runtime.report_error (the panels show it). Without the add-on the file opens and shows the joints as last
+written (or as baked to the Action).
+
+Layer: runtime. Imports downward only (anim_compat, binding, core_loader, muscle_io, rig_io, runtime).
 """
-import hashlib
 import json
 
 import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
-from . import anim_compat, core_loader
+from . import anim_compat, binding, core_loader, muscle_io, rig_io, runtime
 
-_cache = {}     # armature name -> LiveRig
-_busy = False
 stats = {"predicted": 0, "written": 0}  # frames written from the F-curve prediction / from the evaluated pose
 
 
@@ -97,7 +98,6 @@ def apply_settings_to_bound(arm_obj):
     """After a muscle setting changed on a bound armature: when the bound joints stay the same (names and
     bind matrices, e.g. a new bulge factor), update the bind record so live update uses the new settings
     at once and return True; otherwise (the rest path or joints changed) return False: bind again."""
-    from . import muscle_io
     text = arm_obj.myoskin.bind_text
     if text is None:
         return False
@@ -113,25 +113,10 @@ def apply_settings_to_bound(arm_obj):
             np.abs(np.asarray(rig.bind_matrices) - np.asarray(old.bind_matrices)).max() > 1e-9:
         return False
     record["muscles"] = core.muscles_to_json(muscles)
-    write_bind_record(arm_obj, record)
-    forget(arm_obj.name)
+    binding.write_bind_record(arm_obj, record)
+    runtime.forget(arm_obj.name)
     update_armature(arm_obj, force=True)
     return True
-
-
-RECORD_KEY = "myoskin_key"  # ID property on the bind record Text: a digest of its content
-
-
-def write_bind_record(arm_obj, record):
-    """Store the bind record (a dict) in the armature's "<armature>.bind.json" Text, with its digest."""
-    content = json.dumps(record, indent=1)
-    state = arm_obj.myoskin
-    text = state.bind_text or bpy.data.texts.get(f"{arm_obj.name}.bind.json") or \
-        bpy.data.texts.new(f"{arm_obj.name}.bind.json")
-    text.from_string(content)
-    text[RECORD_KEY] = hashlib.sha1(content.encode("utf-8")).hexdigest()
-    state.bind_text = text
-    return text
 
 
 def live_rig(arm_obj):
@@ -140,17 +125,16 @@ def live_rig(arm_obj):
     text = arm_obj.myoskin.bind_text
     if text is None:
         raise ValueError(f"'{arm_obj.name}' has no bind record: bind again")
-    key = text.get(RECORD_KEY) or text.as_string()
-    cached = _cache.get(arm_obj.name)
+    key = text.get(binding.RECORD_KEY) or text.as_string()
+    cached = runtime.live_rigs.get(arm_obj.name)
     if cached is None or cached.key != key:
         cached = LiveRig(arm_obj, text.as_string(), key)
-        _cache[arm_obj.name] = cached
+        runtime.live_rigs[arm_obj.name] = cached
     return cached
 
 
 def evaluated_pose(arm_obj, live, depsgraph=None):
     """#B by 4 by 4 skeleton pose (armature space) from the evaluated armature (constraints and IK applied)."""
-    from . import rig_io
     source = arm_obj.evaluated_get(depsgraph) if depsgraph is not None else arm_obj
     return rig_io.pose_bone_matrices(source)[live.skeleton_indices(source.pose.bones)]
 
@@ -178,7 +162,6 @@ def update_armature(arm_obj, depsgraph=None, force=False, surfaces=None):
 
 def write_pose(arm_obj, live, pose, with_surfaces):
     """Evaluate the rig for a skeleton pose (#B by 4 by 4) and write the joint bones (and the surfaces)."""
-    from . import rig_io
     result = live.rig.evaluate(pose, with_surfaces=with_surfaces)
     rig_io.write_joint_matrices(arm_obj, live.joint_names, result["joint_matrices"],
                                 parent_matrices=(live.bone_names, pose))
@@ -341,47 +324,40 @@ def predict_armature(arm_obj, frame):
 
 
 def stop_live(arm_obj, error):
-    """A handler failed: say why and turn live update off through the property, so its update callback
-    unmutes the baked joint keys and the baked Action plays (the ID property is the fallback)."""
-    print(f"Myoskin: live update of '{arm_obj.name}' stopped: {error}")
+    """A handler failed: say why (runtime.report_error: the panels show it) and turn live update off through
+    the property, so its update callback unmutes the baked joint keys and the baked Action plays (the ID
+    property is the fallback)."""
+    runtime.report_error(arm_obj, f"live update of '{arm_obj.name}' stopped: {error}")
     try:
         arm_obj.myoskin.live = False
     except Exception:  # noqa: BLE001
         arm_obj.myoskin["live"] = False
 
 
-# The bound armatures found by the last frame_change_pre, for the frame_change_post of the same frame change
-# (scene pointer, frame, live-update armature names, baked armature names); used once, then cleared.
-_frame_armatures = None
-
-
 @persistent
 def on_frame_change_pre(scene, depsgraph=None):
-    global _busy, _frame_armatures
-    _frame_armatures = None
-    if _busy or not core_loader.available():
+    """frame_change_pre: write the joints for the predicted pose; remember the bound armatures found
+    (runtime.frame_armatures) for the frame_change_post of the same frame change."""
+    runtime.frame_armatures = None
+    if runtime.busy() or not core_loader.available():
         return
     armatures, baked = split_bound_armatures(scene)
-    _frame_armatures = (scene.as_pointer(), scene.frame_current_final, [a.name for a in armatures],
-                        [a.name for a in baked])
+    runtime.frame_armatures = (scene.as_pointer(), scene.frame_current_final, [a.name for a in armatures],
+                               [a.name for a in baked])
     if not armatures:
         return
-    _busy = True
-    try:
+    with runtime.guard():
         for arm in armatures:
             try:
                 predict_armature(arm, scene.frame_current_final)
             except Exception as e:  # noqa: BLE001  (a handler must never raise into Blender)
                 stop_live(arm, e)
-    finally:
-        _busy = False
 
 
 @persistent
 def on_frame_change_post(scene, depsgraph=None):
     """frame_change_post: on_update for the armatures the frame_change_pre of this frame change found."""
-    global _frame_armatures
-    found, _frame_armatures = _frame_armatures, None
+    found, runtime.frame_armatures = runtime.frame_armatures, None
     if found is not None and found[0] == scene.as_pointer() and found[1] == scene.frame_current_final:
         objects = bpy.data.objects
         lists = tuple([o for o in (objects.get(n) for n in names) if o is not None] for names in found[2:])
@@ -393,18 +369,16 @@ def on_frame_change_post(scene, depsgraph=None):
 @persistent
 def on_update(scene, depsgraph=None):
     """depsgraph_update_post (and frame_change_post): re-pose every bound armature whose skeleton moved."""
-    if not _busy and core_loader.available():
+    if not runtime.busy() and core_loader.available():
         update_all(scene, depsgraph, *split_bound_armatures(scene))
 
 
 def update_all(scene, depsgraph, armatures, baked):
     """The post handlers' work: live armatures re-posed from the evaluated skeleton when it moved other
     than predicted, baked ones get their muscle surfaces."""
-    global _busy
-    if _busy or not core_loader.available() or not (armatures or baked):
+    if runtime.busy() or not core_loader.available() or not (armatures or baked):
         return
-    _busy = True
-    try:
+    with runtime.guard():
         for arm in armatures:
             try:
                 update_armature(arm, depsgraph)
@@ -414,9 +388,7 @@ def update_all(scene, depsgraph, armatures, baked):
             try:
                 update_surfaces(arm, depsgraph)
             except Exception as e:  # noqa: BLE001
-                print(f"Myoskin: muscle surfaces of '{arm.name}' not updated: {e}")
-    finally:
-        _busy = False
+                runtime.report_error(arm, f"muscle surfaces of '{arm.name}' not updated: {e}")
 
 
 def set_baked_muted(arm_obj, muted):
@@ -424,7 +396,6 @@ def set_baked_muted(arm_obj, muted):
     fcurves = anim_compat.object_fcurves(arm_obj.animation_data)
     if not fcurves:
         return 0
-    from . import rig_io
     prefixes = tuple(f'pose.bones["{n}"].' for n in rig_io.muscle_bone_names(arm_obj))
     count = 0
     for fc in fcurves:
@@ -434,27 +405,32 @@ def set_baked_muted(arm_obj, muted):
     return count
 
 
-def forget(arm_name=None):
-    """Drop cached rigs (all, or one armature's)."""
-    if arm_name is None:
-        _cache.clear()
-    else:
-        _cache.pop(arm_name, None)
+def on_live_changed(arm_obj, state):
+    """The Live Update property changed (dispatched from state.py): mute or unmute the baked joint keys; a
+    bound rig turned live again rebuilds its cached rig."""
+    set_baked_muted(arm_obj, state.live)
+    if state.live and state.bound:
+        runtime.forget(arm_obj.name)
 
 
 @persistent
 def on_reload(*_args):
     """load_post / undo_post / redo_post: the data were replaced, so cached rigs and poses are stale."""
-    from . import rig_io
-    forget()
+    runtime.forget()
     rig_io.forget_structures()
+
+
+@persistent
+def on_load(*_args):
+    """load_post: another file, so the errors reported for the armatures of the last one are gone too."""
+    runtime.clear_error()
 
 
 def _handlers():
     h = bpy.app.handlers
     return ((h.frame_change_pre, on_frame_change_pre), (h.frame_change_post, on_frame_change_post),
-            (h.depsgraph_update_post, on_update), (h.load_post, on_reload), (h.undo_post, on_reload),
-            (h.redo_post, on_reload))
+            (h.depsgraph_update_post, on_update), (h.load_post, on_reload), (h.load_post, on_load),
+            (h.undo_post, on_reload), (h.redo_post, on_reload))
 
 
 def register():
@@ -467,4 +443,4 @@ def unregister():
     for handlers, fn in _handlers():
         if fn in handlers:
             handlers.remove(fn)
-    forget()
+    runtime.forget()

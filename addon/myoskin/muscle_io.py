@@ -6,6 +6,8 @@ Spaces: every position is in the armature's space (the core's mesh space, see bl
 object is parented to the armature with an identity parent inverse, so its mesh coordinates ARE armature
 space. A locator is an empty parented to its bone with the parent inverse chosen so that its `location`
 is its rest position in armature space (whatever the current pose).
+
+Layer: muscle service. Imports downward only (state, blender_io, core_loader).
 """
 import json
 
@@ -372,19 +374,8 @@ def mirrored_muscle(arm_obj, item):
 
 
 # ------------------------------------------------------------------------------------------------
-# Update callbacks (from state.py) and the locator watcher (from handlers.py)
+# Service functions of the property callbacks and the locator watcher (called from handlers.py)
 # ------------------------------------------------------------------------------------------------
-
-
-def on_settings_changed(arm_obj, item):
-    """A muscle's settings changed: redraw its wrap display, rewrite muscles.json; on a bound rig apply the
-    change live when the joints stay the same (bulge), else mark the rig edited (bind again)."""
-    from . import live
-    state = rig_state(arm_obj)
-    update_wrap_display(arm_obj, item)
-    if state.bound and not state.dirty:
-        state.dirty = not live.apply_settings_to_bound(arm_obj)
-    sync_text(arm_obj)
 
 
 def on_renamed(arm_obj, item):

@@ -3,6 +3,8 @@
 import bpy
 from bpy.props import FloatProperty, IntProperty
 
+from .panels.common import draw_core_status
+
 
 ADDON_PACKAGE = __package__  # "myoskin", or "bl_ext.<repo>.myoskin" when installed as an extension
 
@@ -29,7 +31,6 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
         default=1.0, min=0.0, soft_max=4.0)
 
     def draw(self, context):
-        from .panels.common import draw_core_status
         layout = self.layout
         draw_core_status(layout)
         col = layout.column(align=True)

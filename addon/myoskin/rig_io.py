@@ -29,7 +29,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Quaternion, Vector
 
-from . import blender_io
+from . import blender_io, core_loader
 
 JOINT_TAG = "myoskin_joint"          # Bone custom property marking a muscle-joint bone (value: 1)
 MUSCLE_LAYER = 24                    # Blender 3.x bone layer of the muscle joints
@@ -368,7 +368,6 @@ def write_joint_matrices(armature_obj, joint_names, joint_matrices, parent_matri
     matrix_basis decomposition); joints in quaternion rotation mode (as created) get location,
     rotation_quaternion and scale with one foreach_set each (every other bone's values are written back
     bit for bit, whatever its rotation mode), a joint in another mode gets matrix_basis. Then update_tag()."""
-    from . import core_loader
     _require_armature(armature_obj, "write_joint_matrices")
     names = [str(n) for n in joint_names]
     matrices = np.asarray(joint_matrices, dtype=np.float64)

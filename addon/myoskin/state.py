@@ -31,12 +31,15 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
                                           restores them exactly)
 
 Converting this to and from core Muscle lists is muscle_io's job; no core call here (only property
-definitions and their update callbacks, which queue work for muscle_io).
+definitions and their update callbacks, which hand the work to the layers above through runtime.dispatch;
+handlers.register connects them). Layer: core data. Imports only runtime.
 """
 import bpy
 from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        IntProperty,
                        PointerProperty, StringProperty)
+
+from . import runtime
 
 WRAP_TYPES = (
     ('none', "None", "Straight action path from origin to insertion"),
@@ -50,29 +53,29 @@ WRAP_SIDES = (
 
 
 def _settings_changed(self, context):
-    """A muscle setting changed: update its wrap display and the muscles.json text (through muscle_io)."""
-    from . import muscle_io
+    """A muscle setting changed: update its wrap display and the muscles.json text (handlers, through the
+    runtime's dispatcher)."""
     arm_obj = self.id_data
     try:
-        muscle_io.on_settings_changed(arm_obj, self)
+        runtime.dispatch("settings_changed", arm_obj, self)
     except Exception as e:  # noqa: BLE001  (an update callback must never raise into the UI)
-        print(f"Myoskin: could not apply the change to '{self.name}': {e}")
+        runtime.report_error(arm_obj, f"could not apply the change to '{self.name}': {e}")
 
 
 def _name_changed(self, context):
-    from . import muscle_io
+    arm_obj = self.id_data
     try:
-        muscle_io.on_renamed(self.id_data, self)
+        runtime.dispatch("renamed", arm_obj, self)
     except Exception as e:  # noqa: BLE001
-        print(f"Myoskin: could not rename '{self.name}': {e}")
+        runtime.report_error(arm_obj, f"could not rename '{self.name}': {e}")
 
 
 def _live_changed(self, context):
-    from . import live
     arm_obj = self.id_data
-    live.set_baked_muted(arm_obj, self.live)
-    if self.live and self.bound:
-        live.forget(arm_obj.name)
+    try:
+        runtime.dispatch("live_changed", arm_obj, self)
+    except Exception as e:  # noqa: BLE001
+        runtime.report_error(arm_obj, f"could not switch live update of '{arm_obj.name}': {e}")
 
 
 class MyoskinMuscle(bpy.types.PropertyGroup):

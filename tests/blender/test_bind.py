@@ -557,7 +557,7 @@ def test_bind_bad_input():
     # a failure half-way (here: a weight row count that does not fit the skin) leaves the rig as it was
     for m in skin.parent.myoskin.muscles:
         m["enabled"] = True
-    rig_ops = module("operators.rig")
+    rig_ops = module("binding")
     real = rig_ops.hybrid_weights
     rig_ops.hybrid_weights = lambda core, character, rig: tuple(a[:-1] for a in real(core, character, rig))
     try:
@@ -580,11 +580,26 @@ def test_deleted_muscle_object_and_renamed_bones_after_bind():
     flex(arm, 40.0)
     bpy.context.view_layer.update()
     assert not state.live
+    # ...and the handler's message is stored where the panels show it (sidebar and modifier tab), not only
+    # printed: the runtime's last error of this armature, drawn with a Dismiss button
+    runtime = module("runtime")
+    message = runtime.last_error(arm)
+    assert "renamed or deleted" in message and "'hand'" in message, message
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from fake_layout import draw_panel
+    bpy.context.view_layer.objects.active = skin
+    for panel in (bpy.types.MYOSKIN_PT_main, bpy.types.MYOSKIN_PT_skin_muscles):
+        layout = draw_panel(panel)
+        assert " ".join(message.split()) in " ".join(layout.text().split()), (panel, layout.text())
+        assert ("operator", "myoskin.clear_error") in layout.log, panel
     text = operator_error(bpy.ops.myoskin.bake_action, frame_start=1, frame_end=2)
     assert "renamed or deleted" in text, text
     # unbind still restores every original weight (the renamed bone's group was renamed with it)
     assert "hand_renamed" in skin.vertex_groups
+    assert runtime.last_error(arm)  # still shown until dismissed, or Bind / Unbind succeeds
     assert bpy.ops.myoskin.unbind() == {'FINISHED'}
+    assert runtime.last_error(arm) == "" and ("operator", "myoskin.clear_error") not in \
+        draw_panel(bpy.types.MYOSKIN_PT_main).log
     restored = weights_of(skin)
     assert restored.pop("hand_renamed") == original.pop("hand") and restored == original
 

@@ -482,6 +482,37 @@ def test_deleted_muscle_object_and_renamed_bone():
     assert bpy.ops.myoskin.refresh_muscles() == {'FINISHED'}
 
 
+def test_property_callback_error_is_shown_in_the_panel():
+    """A property update callback that fails does not raise into the UI: its message is stored for the
+    armature (runtime.last_error), drawn by the sidebar with a Dismiss button, and dismissed by it."""
+    arm, skin, state = extracted_arm()
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from fake_layout import draw_panel
+    runtime, io = module("runtime"), module("muscle_io")
+    assert runtime.last_error(arm) == ""
+    assert ("operator", "myoskin.clear_error") not in draw_panel(bpy.types.MYOSKIN_PT_main).log
+    real = io.update_wrap_display
+
+    def broken(arm_obj, item):
+        raise RuntimeError("wrap display exploded")
+    io.update_wrap_display = broken
+    try:
+        state.muscles[0].bulge = 2.0  # the update callback runs (and fails) here
+    finally:
+        io.update_wrap_display = real
+    assert state.muscles[0].bulge == 2.0
+    message = runtime.last_error(arm.name)
+    assert message == f"could not apply the change to '{state.muscles[0].name}': wrap display exploded", message
+    layout = draw_panel(bpy.types.MYOSKIN_PT_main)
+    assert " ".join(message.split()) in " ".join(layout.text().split()), layout.text()
+    assert ("operator", "myoskin.clear_error") in layout.log
+    assert bpy.ops.myoskin.clear_error(armature=arm.name) == {'FINISHED'}
+    assert runtime.last_error(arm) == ""
+    assert ("operator", "myoskin.clear_error") not in draw_panel(bpy.types.MYOSKIN_PT_main).log
+    state.muscles[0].bulge = 1.5  # works again: no new error
+    assert runtime.last_error(arm) == ""
+
+
 def test_panels_draw_with_muscles():
     arm, skin, state = extracted_arm()
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))

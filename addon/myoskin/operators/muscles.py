@@ -6,6 +6,7 @@ import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from .. import blender_io, core_loader, muscle_io
+from ..blender_io import require_weights
 from ..preferences import get_preferences
 from ..state import LIMITS, rig_state
 
@@ -32,14 +33,6 @@ def resolve_extracted(context):
     if len(state.muscles) == 0:
         raise ValueError(f"No muscles on '{arm.name}': run Extract Muscles first")
     return skin, arm, state
-
-
-def require_weights(mesh_obj, arm_obj):
-    """ValueError when no vertex group of the mesh names a deform bone of the armature (not skinned)."""
-    bones = arm_obj.data.bones
-    if not any(g.name in bones and bones[g.name].use_deform for g in mesh_obj.vertex_groups):
-        raise ValueError(f"Mesh '{mesh_obj.name}' is not skinned: none of its vertex groups is a deform bone "
-                         f"of '{arm_obj.name}' (weight-paint it or use Parent > With Automatic Weights)")
 
 
 class _MuscleOperator:

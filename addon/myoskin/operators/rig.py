@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Rig operators: Bind / Unbind the muscles to the character's armature, Bake the muscle joints to an Action,
 export glTF with the helper bones, bake the skin to a PC2 cache through the core.
-Small: convert data (blender_io, rig_io, muscle_io), call the core, report."""
+Small: call the rig service (binding), convert data (blender_io, rig_io), call the core, report."""
 import json
 import os
 
@@ -9,137 +9,9 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
-from .. import blender_io, core_loader, gltf_io, live, muscle_io, rig_io
-from .muscles import _MuscleOperator, require_weights, resolve_extracted, resolve_rig
+from .. import binding, blender_io, core_loader, gltf_io, live, rig_io, runtime
+from .muscles import _MuscleOperator, resolve_extracted, resolve_rig
 from ..state import rig_state
-
-
-# ------------------------------------------------------------------------------------------------
-# Bind record and weight backup (Text datablocks, so they live in the .blend)
-# ------------------------------------------------------------------------------------------------
-
-
-BACKUP_KEY = "myoskin_original_weights"
-
-
-def backup_weights(skin):
-    """Store every vertex group of the skin as an ID property on it: {name: {"index": group index,
-    "vertices": [...], "weights": [...]}}. Weights are float32 in Blender and kept as float64 here, so a
-    restore is exact."""
-    members = [([], []) for _ in skin.vertex_groups]
-    for v in skin.data.vertices:
-        for g in v.groups:
-            members[g.group][0].append(v.index)
-            members[g.group][1].append(g.weight)
-    skin[BACKUP_KEY] = {g.name: {"index": g.index, "vertices": ids, "weights": ws}
-                        for g, (ids, ws) in zip(skin.vertex_groups, members)}
-
-
-def restore_weights(skin):
-    """Give every backed-up group exactly its backed-up members (groups keep their index; a group renamed
-    since, e.g. with its bone, is found by index; missing ones are recreated; groups added since the backup
-    are left alone), then drop the backup."""
-    backup = skin.get(BACKUP_KEY)
-    if backup is None:
-        return False
-    everyone = list(range(len(skin.data.vertices)))
-    names = set(backup.keys())
-    for name, entry in sorted(backup.items(), key=lambda kv: kv[1]["index"]):
-        group = skin.vertex_groups.get(name)
-        if group is None:  # renamed with its bone since the bind (a group keeps its index): restore into it
-            index = int(entry["index"])
-            if index < len(skin.vertex_groups) and skin.vertex_groups[index].name not in names:
-                group = skin.vertex_groups[index]
-            else:
-                group = skin.vertex_groups.new(name=name)
-        group.remove(everyone)
-        ids = np.asarray(entry["vertices"], dtype=np.int64)
-        ws = np.asarray(entry["weights"], dtype=np.float64)
-        order = np.argsort(ws, kind="stable")
-        ids, ws = ids[order], ws[order]
-        breaks = np.flatnonzero(np.diff(ws) != 0) + 1
-        for a, b in zip(np.concatenate(([0], breaks)), np.concatenate((breaks, [len(ws)]))):
-            if b > a:
-                group.add(ids[a:b].tolist(), float(ws[a]), 'REPLACE')
-    del skin[BACKUP_KEY]
-    return True
-
-
-def hybrid_weights(core, character, rig):
-    """(#V by K joints over combined joints, #V by K weights) for the skin (core, issue 5)."""
-    result = core.hybrid_weights(character, rig)
-    return np.asarray(result[0]), np.asarray(result[1])
-
-
-def armature_modifier(skin, arm):
-    for mod in skin.modifiers:
-        if mod.type == 'ARMATURE' and mod.object == arm:
-            return mod
-    return None
-
-
-def bind(context, skin, arm):
-    """Create the muscle joints as deform bones, write the combined weights, keep/add the Armature modifier.
-    Returns the number of joints."""
-    core = core_loader.core()
-    state = rig_state(arm)
-    require_weights(skin, arm)
-    if arm.name not in context.view_layer.objects:
-        raise ValueError(f"Armature '{arm.name}' is not in the view layer: link it to bind")
-    character = blender_io.character_from_blender(skin, arm)
-    muscles = [core.reattach_muscle(m) for m in muscle_io.state_to_core(arm)]
-    if not muscles:
-        raise ValueError(f"Every muscle of '{arm.name}' is disabled: enable at least one to bind")
-    rig = core.MuscleRig(character, muscles)
-    joints, weights = hybrid_weights(core, character, rig)
-    backup_weights(skin)
-    names = list(character.bone_names)
-    try:
-        rig_io.create_rig_bones(arm, rig, names)
-        rig_io.write_combined_weights(skin, names + list(rig.joint_names), joints, weights)
-    except Exception:  # leave the rig as it was: no joint bones, the original weights
-        rig_io.remove_muscle_bones(arm)
-        restore_weights(skin)
-        raise
-    added = armature_modifier(skin, arm) is None
-    if added:
-        mod = skin.modifiers.new("Armature", 'ARMATURE')
-        mod.object = arm
-        mod.use_vertex_groups, mod.use_bone_envelopes, mod.use_deform_preserve_volume = True, False, False
-    surfaces = {m.name: item.surface.name for item in rig_state(arm).muscles
-                for m in muscles if m.name == item.name and item.surface is not None}
-    record = {
-        "skin": skin.name, "added_modifier": added, "bone_names": names,
-        "bone_parents": np.asarray(character.bone_parents).tolist(),
-        "bone_heads": np.asarray(character.bone_heads).tolist(),
-        "bone_tails": np.asarray(character.bone_tails).tolist(),
-        "bone_rest": np.asarray(character.bone_rest).tolist(),
-        "joint_names": list(rig.joint_names), "muscles": core.muscles_to_json(muscles),
-        "surfaces": [surfaces.get(m.name, "") for m in muscles],
-    }
-    live.write_bind_record(arm, record)
-    state.skin = skin
-    state.bound, state.dirty = True, False
-    context.scene.render.use_lock_interface = True  # handlers run on the render thread during F12
-    live.forget(arm.name)
-    live.update_armature(arm, force=True)
-    return rig.num_joints
-
-
-def unbind(skin, arm):
-    """Remove the muscle-joint bones and their groups, restore the original weights exactly."""
-    state = rig_state(arm)
-    record = json.loads(state.bind_text.as_string()) if state.bind_text else {}
-    rig_io.remove_muscle_bones(arm)
-    restore_weights(skin)
-    if record.get("added_modifier"):
-        mod = armature_modifier(skin, arm)
-        if mod is not None:
-            skin.modifiers.remove(mod)
-    if state.bind_text is not None:
-        bpy.data.texts.remove(state.bind_text)
-    state.bound, state.dirty = False, False
-    live.forget(arm.name)
 
 
 class MYOSKIN_OT_bind(_MuscleOperator, bpy.types.Operator):
@@ -154,9 +26,11 @@ class MYOSKIN_OT_bind(_MuscleOperator, bpy.types.Operator):
         wm.progress_begin(0, 2)
         try:
             if state.bound:
-                unbind(skin, arm)
+                binding.unbind(skin, arm)
             wm.progress_update(1)
-            joints = bind(context, skin, arm)
+            joints = binding.bind(context, skin, arm)
+            live.update_armature(arm, force=True)
+            runtime.clear_error(arm)
         finally:
             wm.progress_end()
         return f"Bound {sum(1 for m in state.muscles if m.enabled)} muscles ({joints} joints) to {arm.name}"
@@ -171,8 +45,22 @@ class MYOSKIN_OT_unbind(_MuscleOperator, bpy.types.Operator):
         skin, arm = resolve_rig(context.active_object)
         if not rig_state(arm).bound:
             raise ValueError(f"'{arm.name}' is not bound")
-        unbind(skin, arm)
+        binding.unbind(skin, arm)
+        runtime.clear_error(arm)
         return f"Unbound {arm.name}: original weights restored"
+
+
+class MYOSKIN_OT_clear_error(bpy.types.Operator):
+    """Dismiss the error a handler or property callback reported for this armature (shown in the panels)"""
+    bl_idname = "myoskin.clear_error"
+    bl_label = "Dismiss Error"
+    bl_options = {'REGISTER', 'INTERNAL'}
+
+    armature: StringProperty(name="Armature", description="The armature whose error to dismiss (empty: all)")
+
+    def execute(self, context):
+        runtime.clear_error(self.armature or None)
+        return {'FINISHED'}
 
 
 def require_bound(context):
@@ -302,4 +190,4 @@ def bake_skin_frames(context, skin, arm, start, end):
 
 
 classes = (MYOSKIN_OT_bind, MYOSKIN_OT_unbind, MYOSKIN_OT_bake_action, MYOSKIN_OT_export_gltf,
-           MYOSKIN_OT_bake_pc2)
+           MYOSKIN_OT_bake_pc2, MYOSKIN_OT_clear_error)

@@ -2,7 +2,7 @@
 """Drawing helpers shared by the panels (UI only)."""
 import textwrap
 
-from .. import core_loader
+from .. import core_loader, runtime
 from ..blender_io import find_armature
 
 
@@ -28,6 +28,19 @@ def draw_core_status(layout, context=None):
     box.label(text=f"This Blender runs Python {core_loader.running_python_version()}; the add-on has a core "
                    f"for Python {core_loader.pythons_text(core_loader.available_pythons())}")
     return False
+
+
+def draw_last_error(layout, arm, context=None):
+    """The last error a handler or property callback reported for the armature (runtime.report_error), in a
+    red box with a Dismiss button; nothing when there is none. Returns True when it drew one."""
+    message = runtime.last_error(arm) if arm is not None else ""
+    if not message:
+        return False
+    box = layout.box()
+    box.alert = True
+    draw_wrapped(box, message, context, icon='ERROR')
+    box.operator("myoskin.clear_error", text="Dismiss", icon='X').armature = arm.name
+    return True
 
 
 def draw_character_info(layout, obj):

@@ -4,7 +4,7 @@ import bpy
 
 from .. import core_loader
 from ..blender_io import find_armature
-from .common import draw_core_status
+from .common import draw_core_status, draw_last_error
 
 
 class MYOSKIN_PT_skin_muscles(bpy.types.Panel):
@@ -26,6 +26,7 @@ class MYOSKIN_PT_skin_muscles(bpy.types.Panel):
             layout.label(text="No armature: add an Armature modifier", icon='ERROR')
             return
         layout.label(text=f"Skinned by {arm.name} ({len(arm.data.bones)} bones)", icon='ARMATURE_DATA')
+        draw_last_error(layout, arm, context)
         state = arm.myoskin
         if state.skin is not None and state.skin != context.object:
             layout.label(text=f"Muscles belong to {state.skin.name}", icon='INFO')

@@ -5,7 +5,7 @@ import bpy
 
 from .. import core_loader
 from ..blender_io import find_armature
-from .common import draw_character_info, draw_core_status
+from .common import draw_character_info, draw_core_status, draw_last_error
 
 
 class MyoskinSidebar:
@@ -34,6 +34,7 @@ class MYOSKIN_PT_main(MyoskinSidebar, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         draw_core_status(layout, context)
+        draw_last_error(layout, active_rig(context)[1], context)
         draw_character_info(layout, context.active_object)
         row = layout.row(align=True)
         row.enabled = core_loader.available()
