@@ -95,9 +95,15 @@ run_bench() {
       --addons myoskin --python "$ROOT/benchmarks/bench_blender_skinning.py" -- "$BUILD/bench_skinning_data" \
       --threads "$t" 2>&1 | grep -v -e "^Blender quit" -e "^Read prefs"
   done
-  log "bench_blender_playback (Blender background)"
-  BLENDER_USER_SCRIPTS="$BUILD/blender_scripts" blender -b --factory-startup --python-exit-code 1 \
-    --addons myoskin --python "$ROOT/benchmarks/bench_blender_playback.py" 2>&1 | grep -v -e "^Blender quit" -e "^Read prefs"
+  # Playback against the plain Armature modifier, on every Blender of the matrix.
+  local label build cmd
+  while IFS=$'\t' read -r label build cmd; do
+    log "bench_blender_playback ($label)"
+    # shellcheck disable=SC2086
+    BLENDER_USER_SCRIPTS="$build/blender_scripts" $cmd "$ROOT/benchmarks/bench_blender_playback.py" 2>&1 \
+      | grep -v -e "^Blender quit" -e "^Read prefs" -e "^Freeing memory" -e "mounted file-systems" -e "^Info:" \
+             -e "^Read blend" -e "^Saved"
+  done < <(matrix_blenders)
 }
 
 case "${1:-}" in

@@ -111,26 +111,38 @@ matrix_build() {
   $runner cmake --build "$dir" -j "$JOBS" --target myoskin stage_addon
 }
 
-# One flavour line per Blender for tests/CMakeLists.txt: label, runner, command, user-scripts folder.
-matrix_write_cmake() {
-  local out="$BUILD/matrix.cmake" tmp="$BUILD/matrix.cmake.tmp" suite
-  local suites=("$(matrix_host_suite)")
+# Every Blender of the matrix, one line each: "LABEL<TAB>BUILD<TAB>COMMAND..." where COMMAND (runner prefix
+# included) runs a Blender script the way `blender -b --factory-startup --python-exit-code 1 --addons
+# myoskin --python` does; the script path follows it.
+matrix_blenders() {
+  local suite suites=("$(matrix_host_suite)")
   matrix_enabled && suites+=("$(matrix_other_suite "${suites[0]}")")
+  for suite in "${suites[@]}"; do
+    local runner build bpyv; runner="$(matrix_runner "$suite")"; build="$(matrix_suite_build_dir "$suite")"
+    bpyv="$(matrix_suite_bpy "$suite")"
+    printf 'blender-%s\t%s\t%sblender -b --factory-startup --python-exit-code 1 --addons myoskin --python\n' \
+      "$(matrix_suite_blender "$suite")" "$build" "$runner"
+    if matrix_enabled; then
+      printf 'blender-%s\t%s\t%s%s/bpy-%s/bin/python %s/tests/blender/bpy_main.py --addons myoskin --python-exit-code 1 --python\n' \
+        "${bpyv%.*}" "$build" "$runner" "$BUILD" "$bpyv" "$ROOT"
+    fi
+  done
+}
+
+# tests/CMakeLists.txt's view of the matrix: a myoskin_blender_flavour() per Blender, a myoskin_python_tier()
+# for the other release's Python.
+matrix_write_cmake() {
+  local out="$BUILD/matrix.cmake" tmp="$BUILD/matrix.cmake.tmp" label build cmd
   {
     echo "# Written by tools/matrix.sh (myoskin.sh); read by tests/CMakeLists.txt."
-    for suite in "${suites[@]}"; do
-      local runner build py bpyv; runner="$(matrix_runner "$suite")"; build="$(matrix_suite_build_dir "$suite")"
-      py="$(matrix_suite_python "$suite")"; bpyv="$(matrix_suite_bpy "$suite")"
-      printf 'myoskin_blender_flavour(blender-%s PYTHON %s BUILD "%s" RUNNER %s COMMAND blender -b --factory-startup --python-exit-code 1 --addons myoskin --python)\n' \
-        "$(matrix_suite_blender "$suite")" "$py" "$build" "$runner"
-      if matrix_enabled; then
-        printf 'myoskin_blender_flavour(blender-%s PYTHON %s BUILD "%s" RUNNER %s COMMAND "%s/bpy-%s/bin/python" "%s/tests/blender/bpy_main.py" --addons myoskin --python-exit-code 1 --python)\n' \
-          "${bpyv%.*}" "$py" "$build" "$runner" "$BUILD" "$bpyv" "$ROOT"
-      fi
-      if [ "$suite" != "${suites[0]}" ]; then
-        printf 'myoskin_python_tier(python-%s BUILD "%s" RUNNER %s)\n' "$py" "$build" "$runner"
-      fi
-    done
+    while IFS=$'\t' read -r label build cmd; do
+      printf 'myoskin_blender_flavour(%s BUILD "%s" COMMAND %s)\n' "$label" "$build" "$cmd"
+    done < <(matrix_blenders)
+    if matrix_enabled; then
+      local other; other="$(matrix_other_suite "$(matrix_host_suite)")"
+      printf 'myoskin_python_tier(python-%s BUILD "%s" RUNNER %s)\n' "$(matrix_suite_python "$other")" \
+        "$(matrix_suite_build_dir "$other")" "$(matrix_runner "$other")"
+    fi
   } >"$tmp"
   if ! cmp -s "$tmp" "$out"; then mv "$tmp" "$out"; else rm -f "$tmp"; fi
 }

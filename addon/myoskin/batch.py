@@ -32,6 +32,8 @@ def parse_args(argv):
                    help="section spacing in metres (0 = automatic, default: the add-on's preferences)")
     p.add_argument("--min-confidence", type=float, default=-1.0, help="default: the add-on's preferences")
     p.add_argument("--bind", action="store_true", help="bind the muscles to the armature")
+    p.add_argument("--max-influences", type=int, default=0, metavar="N",
+                   help="bones and muscle joints per vertex after --bind (default: the rig's setting, 8; 4 for game engines)")
     p.add_argument("--bake", metavar="A-B", help="bake the muscle joints to keyframes over frames A-B")
     p.add_argument("--pc2", metavar="FILE", help="bake the skin to a PC2 cache (needs --bind and --bake)")
     p.add_argument("--gltf", metavar="FILE", help="export skin + armature + helper bones to glTF")
@@ -171,6 +173,10 @@ def main(argv):
         run_op(bpy.ops.myoskin.extract_muscles, spacing=args.spacing, min_confidence=args.min_confidence)
         log(f"extracted {len(state.muscles)} muscles from {skin.name}")
     if args.bind:
+        if args.max_influences:
+            if not 1 <= args.max_influences <= 16:
+                fail(f"--max-influences must be in 1..16, got {args.max_influences}")
+            state.max_influences = args.max_influences
         run_op(bpy.ops.myoskin.bind)
         log(f"bound: {len(state.muscles)} muscles")
     frames = parse_range(args.bake) if args.bake else None

@@ -64,9 +64,9 @@ def restore_weights(skin):
     return True
 
 
-def hybrid_weights(core, character, rig):
-    """(#V by K joints over combined joints, #V by K weights) for the skin (core, issue 5)."""
-    result = core.hybrid_weights(character, rig)
+def hybrid_weights(core, character, rig, max_influences=8):
+    """(#V by K joints over combined joints, #V by K weights) for the skin, K = max_influences."""
+    result = core.hybrid_weights(character, rig, max_influences=max_influences)
     return np.asarray(result[0]), np.asarray(result[1])
 
 
@@ -91,7 +91,7 @@ def bind(context, skin, arm):
     if not muscles:
         raise ValueError(f"Every muscle of '{arm.name}' is disabled: enable at least one to bind")
     rig = core.MuscleRig(character, muscles)
-    joints, weights = hybrid_weights(core, character, rig)
+    joints, weights = hybrid_weights(core, character, rig, state.max_influences)
     backup_weights(skin)
     names = list(character.bone_names)
     try:

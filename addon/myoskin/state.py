@@ -125,6 +125,9 @@ class MyoskinRigState(bpy.types.PropertyGroup):
     auto_rebind: BoolProperty(name="Auto Rebind", default=True,
                               description="When a locator of a bound muscle moves, bind again once it is still, "
                                           "so the muscle joints follow (Object Mode)")
+    max_influences: IntProperty(name="Max Influences", default=8, min=1, max=16,
+                                description="Bones and muscle joints per skin vertex after Bind (the largest "
+                                            "are kept and renormalised; 4 is what game engines take)")
     bind_text: PointerProperty(name="Bind Record", type=bpy.types.Text,
                                description="<armature>.bind.json: what Bind built (live update rebuilds from it)")
 

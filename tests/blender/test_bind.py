@@ -92,6 +92,26 @@ def core_skin(arm, skin, state):
 # Bind
 # ------------------------------------------------------------------------------------------------
 
+def test_max_influences_caps_every_vertex_and_blender_still_equals_the_core():
+    arm, skin, state, _ = bound_arm()
+    counts = np.array([sum(g.weight > 0 for g in v.groups) for v in skin.data.vertices])
+    assert state.max_influences == 8 and counts.max() > 4, counts.max()  # the arm reaches 7
+    state.max_influences = 4
+    assert bpy.ops.myoskin.bind() == {'FINISHED'}
+    counts = np.array([sum(g.weight > 0 for g in v.groups) for v in skin.data.vertices])
+    assert counts.max() == 4, counts.max()
+    state.max_influences = 2
+    assert bpy.ops.myoskin.bind() == {'FINISHED'}
+    counts = np.array([sum(g.weight > 0 for g in v.groups) for v in skin.data.vertices])
+    assert counts.max() == 2, counts.max()
+    names = joint_names(state)
+    assert sum(1 for v in skin.data.vertices for g in v.groups if skin.vertex_groups[g.group].name in names) > 100
+    key_elbow(arm, ((1, 0.0), (5, 100.0)))
+    bpy.context.scene.frame_set(4)
+    err = np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max()
+    assert err < 1e-5, err
+
+
 def test_bind_creates_joint_bones_weights_and_keeps_the_modifier():
     arm, skin, state, original = bound_arm()
     names = joint_names(state)
@@ -559,7 +579,7 @@ def test_bind_bad_input():
         m["enabled"] = True
     rig_ops = module("binding")
     real = rig_ops.hybrid_weights
-    rig_ops.hybrid_weights = lambda core, character, rig: tuple(a[:-1] for a in real(core, character, rig))
+    rig_ops.hybrid_weights = lambda core, character, rig, *k: tuple(a[:-1] for a in real(core, character, rig, *k))
     try:
         text = operator_error(bpy.ops.myoskin.bind)
     finally:

@@ -147,6 +147,7 @@ class MYOSKIN_PT_bind(_WorkflowStep, bpy.types.Panel):
         row = layout.row(align=True)
         row.operator("myoskin.bind", icon='LINKED')
         row.operator("myoskin.unbind", icon='UNLINKED')
+        layout.prop(state, "max_influences")
         if state.bound:
             layout.label(text=f"Bound to {state.skin.name if state.skin else '?'}", icon='CHECKMARK')
             layout.prop(state, "live")
