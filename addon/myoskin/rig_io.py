@@ -35,7 +35,30 @@ JOINT_TAG = "myoskin_joint"          # Bone custom property marking a muscle-joi
 MUSCLE_LAYER = 24                    # Blender 3.x bone layer of the muscle joints
 MUSCLE_COLLECTION = "Muscle Joints"  # Blender 4.x bone collection of the muscle joints
 DEFAULT_LENGTH = 0.02                # metres, display length of a joint bone when none is given
-REST_TOLERANCE = 1e-5                # max |matrix_local - bind| accepted after creating a bone
+FLOAT32_EPS = float(np.finfo(np.float32).eps)
+ROUND_OFF_ULPS = 64                  # float32 round-off accepted when Blender re-derives matrix_local
+ROLL_FLOOR = 1e-4                    # Blender's roll <-> matrix conversion loses digits near the -Y axis
+RIGID_TOLERANCE = 1e-4               # |R^T R - I| of a bind matrix (float32 data pass through it)
+
+
+def rest_tolerance(bind, length):
+    """(rotation, translation) round-off Blender's float32 head/tail/roll may put into a bone's
+    matrix_local: the direction comes from the difference of coordinates as large as the bone's distance
+    from the origin, so its error grows with that distance over the bone's length; the head's with the
+    distance itself (bind: 4 by 4, length: the bone's length)."""
+    size = max(float(np.linalg.norm(bind[:3, 3])), float(length), 1e-30)
+    return (max(ROUND_OFF_ULPS * FLOAT32_EPS * size / float(length), ROLL_FLOOR),
+            ROUND_OFF_ULPS * FLOAT32_EPS * size)
+
+
+def _require_rigid(bind, names):
+    for j, n in enumerate(names):
+        r = bind[j, :3, :3]
+        off = float(np.abs(r.T @ r - np.eye(3)).max())
+        if off > RIGID_TOLERANCE or np.linalg.det(r) <= 0 or np.abs(bind[j, 3] - (0, 0, 0, 1)).max() > 0:
+            raise RuntimeError(f"create_muscle_bones: the bind matrix of '{n}' is not rigid (|R^T R - I| = "
+                               f"{off:.3g}, det {np.linalg.det(r):.3g}): a bind matrix must be a rotation and "
+                               f"a translation")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -125,6 +148,7 @@ def create_muscle_bones(armature_obj, joint_names, bind_matrices, parent_bones, 
     lengths = np.full(len(names), DEFAULT_LENGTH) if lengths is None else np.asarray(lengths, dtype=np.float64)
     if lengths.shape != (len(names),) or not (np.isfinite(lengths).all() and (lengths > 0).all()):
         raise ValueError(f"create_muscle_bones: lengths must be {len(names)} positive numbers")
+    _require_rigid(bind, names)
     arm_data = armature_obj.data
     existing = set(arm_data.bones.keys())
     for p in parents:
@@ -158,10 +182,13 @@ def create_muscle_bones(armature_obj, joint_names, bind_matrices, parent_bones, 
     for j, n in enumerate(names):
         bones[n][JOINT_TAG] = 1
         armature_obj.pose.bones[n].rotation_mode = 'QUATERNION'  # write_joint_matrices' fast path
-        err = float(np.abs(actual[bones.find(n)] - bind[j]).max())
-        if err > REST_TOLERANCE:
+        diff = np.abs(actual[bones.find(n)] - bind[j])
+        rot_err, move_err = float(diff[:3, :3].max()), float(diff[:3, 3].max())
+        rot_tol, move_tol = rest_tolerance(bind[j], lengths[j])
+        if rot_err > rot_tol or move_err > move_tol:
             raise RuntimeError(f"create_muscle_bones: bone '{n}' matrix_local differs from its bind matrix by "
-                               f"{err:.3g} (a bind matrix must be rigid)")
+                               f"{rot_err:.3g} in rotation and {move_err:.3g} in position, more than float32 "
+                               f"round-off ({rot_tol:.3g}, {move_tol:.3g})")
     return names
 
 
