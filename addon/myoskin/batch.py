@@ -8,10 +8,16 @@
 
 Steps run in this order, each optional: import (--input .glb/.gltf/.blend), extract, --bind, --bake A-B
 (muscle joints keyed into the armature's Action), --pc2 FILE (the skin over the bake range, computed by the
-core), --gltf FILE (skin + armature + helper bones + Actions), -o FILE.blend. The add-on must be findable
+core; a character of several meshes gets one file per mesh, FILE_<mesh>.pc2), --gltf FILE (skin + armature
++ helper bones + Actions), -o FILE.blend. The add-on must be findable
 (BLENDER_USER_SCRIPTS=<build>/blender_scripts, or installed); it is enabled here when it is not. Errors
 print one line "myoskin batch: error: ..." and exit with status 1 (with --python-exit-code 1 for Python
 exceptions too).
+
+The character is the scene's armature and every mesh it deforms (several skinned meshes, e.g. Body, Feet,
+Head, Legs, are analysed as one surface and all bound); `--object MESH` uses that mesh alone, `--object
+ARMATURE` picks one character when the scene holds several. Meshes of the armature without weights of its
+bones are skipped, and the log says so.
 """
 import argparse
 import importlib
@@ -27,7 +33,8 @@ def parse_args(argv):
     p.add_argument("command", nargs="?", choices=("extract", "none"), default="none",
                    help="extract: (re-)extract the muscles; none: use the muscles already in the file")
     p.add_argument("--input", "-i", help="a .blend, .glb or .gltf to open first (default: the open file)")
-    p.add_argument("--object", help="the skinned mesh (default: the only mesh with an armature)")
+    p.add_argument("--object", help="a skinned mesh to use alone, or an armature (default: the scene's one armature "
+                                    "with every mesh it deforms: the whole character)")
     p.add_argument("--spacing", type=float, default=-1.0,
                    help="section spacing in metres (0 = automatic, default: the add-on's preferences)")
     p.add_argument("--min-confidence", type=float, default=-1.0, help="default: the add-on's preferences")
@@ -102,18 +109,30 @@ def open_input(path):
     log(f"opened {path}")
 
 
-def find_skin(name):
+def find_character(name):
+    """The object to make active: --object NAME (a skinned mesh alone, or an armature and all its meshes),
+    else the one armature of the scene that deforms meshes (the whole character)."""
     blender_io = addon("blender_io")
     if name:
         obj = bpy.data.objects.get(name)
         if obj is None:
             fail(f"no object '{name}'")
+        if obj.type not in ('MESH', 'ARMATURE'):
+            fail(f"--object '{name}' is a {obj.type.lower()}: give a skinned mesh or an armature")
         return obj
-    skins = [o for o in bpy.context.scene.objects if o.type == 'MESH' and blender_io.find_armature(o) is not None
-             and o.get("myoskin_muscle") is None]
-    if len(skins) != 1:
-        fail(f"{len(skins)} skinned meshes in the scene ({', '.join(o.name for o in skins)}): pick one with --object")
-    return skins[0]
+    skins = [o for o in bpy.context.scene.objects if o.type == 'MESH' and o.get("myoskin_muscle") is None
+             and blender_io.find_armature(o) is not None]
+    if not skins:
+        fail("0 skinned meshes in the scene: nothing to extract (give a file with a mesh deformed by an armature)")
+    armatures = []
+    for o in skins:
+        arm = blender_io.find_armature(o)
+        if arm not in armatures:
+            armatures.append(arm)
+    if len(armatures) != 1:
+        fail(f"{len(armatures)} armatures deform meshes in the scene ({', '.join(a.name for a in armatures)}): "
+             f"pick one with --object")
+    return armatures[0]
 
 
 def run_op(op, **kwargs):
@@ -164,21 +183,30 @@ def main(argv):
     ensure_addon()
     if args.input:
         open_input(args.input)
-    skin = find_skin(args.object)
-    bpy.context.view_layer.objects.active = skin
-    state = addon("blender_io").find_armature(skin).myoskin
+    target = find_character(args.object)
+    bpy.context.view_layer.objects.active = target
+    blender_io = addon("blender_io")
+    arm = blender_io.find_armature(target)
+    if arm is None:
+        fail(f"'{target.name}' has no armature: add an Armature modifier or parent it to an armature")
+    state = arm.myoskin
     if args.command == "extract":
         if state.bound:
             run_op(bpy.ops.myoskin.unbind)
         run_op(bpy.ops.myoskin.extract_muscles, spacing=args.spacing, min_confidence=args.min_confidence)
-        log(f"extracted {len(state.muscles)} muscles from {skin.name}")
+        skins = [s.object.name for s in state.skins if s.object is not None]
+        log(f"extracted {len(state.muscles)} muscles from {arm.name if target == arm else target.name} "
+            f"({len(skins)} mesh(es): {', '.join(skins)})")
+        if target == arm:
+            for obj, why in blender_io.character_meshes(arm)[1]:
+                log(f"skipped mesh {obj.name}: {why}")
     if args.bind:
         if args.max_influences:
             if not 1 <= args.max_influences <= 16:
                 fail(f"--max-influences must be in 1..16, got {args.max_influences}")
             state.max_influences = args.max_influences
         run_op(bpy.ops.myoskin.bind)
-        log(f"bound: {len(state.muscles)} muscles")
+        log(f"bound: {len(state.muscles)} muscles to {', '.join(s.object.name for s in state.skins if s.object)}")
     frames = parse_range(args.bake) if args.bake else None
     if frames:
         run_op(bpy.ops.myoskin.bake_action, frame_start=frames[0], frame_end=frames[1])
@@ -188,7 +216,8 @@ def main(argv):
             fail("--pc2 needs --bake A-B for its frame range")
         run_op(bpy.ops.myoskin.bake_pc2, filepath=os.path.abspath(args.pc2), frame_start=frames[0],
                frame_end=frames[1])
-        log(f"wrote {args.pc2}")
+        written = addon("operators.rig").pc2_paths(os.path.abspath(args.pc2), addon("binding").bound_skins(arm))
+        log(f"wrote {', '.join(written)}")
     if args.gltf:
         run_op(bpy.ops.myoskin.export_gltf, filepath=os.path.abspath(args.gltf))
         log(f"wrote {args.gltf}")

@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 
 from . import blender_io, core_loader, muscle_io, rig_io, runtime
-from .state import rig_state
+from .state import rig_skins, rig_state, set_rig_skins
 
 # ------------------------------------------------------------------------------------------------
 # Bind record and weight backup (Text datablocks, so they live in the .blend)
@@ -77,39 +77,54 @@ def armature_modifier(skin, arm):
     return None
 
 
-def bind(context, skin, arm):
-    """Create the muscle joints as deform bones, write the combined weights, keep/add the Armature modifier,
-    write the bind record. Returns the number of joints; the caller then poses them
-    (live.update_armature(arm, force=True))."""
+def bind(context, skins, arm):
+    """Create the muscle joints as deform bones, write the combined weights to every mesh of the character
+    (`skins`: computed once on the meshes welded into one surface, then split back per mesh, so vertices
+    where pieces meet get the same weights), keep/add the Armature modifier of each, write the bind record.
+    Returns the number of joints; the caller then poses them (live.update_armature(arm, force=True))."""
     core = core_loader.core()
     state = rig_state(arm)
-    blender_io.require_weights(skin, arm)
+    skins = list(skins)
+    if not skins:
+        raise ValueError(f"No mesh to bind '{arm.name}' to: select the skinned mesh or the armature")
+    for skin in skins:
+        blender_io.require_weights(skin, arm)
     if arm.name not in context.view_layer.objects:
         raise ValueError(f"Armature '{arm.name}' is not in the view layer: link it to bind")
-    character = blender_io.character_from_blender(skin, arm)
+    combined = blender_io.combined_character(skins, arm)
+    character = combined.character
     muscles = [core.reattach_muscle(m) for m in muscle_io.state_to_core(arm)]
     if not muscles:
         raise ValueError(f"Every muscle of '{arm.name}' is disabled: enable at least one to bind")
     rig = core.MuscleRig(character, muscles)
     joints, weights = hybrid_weights(core, character, rig, state.max_influences)
-    backup_weights(skin)
+    if joints.shape[0] != character.num_vertices or weights.shape[0] != character.num_vertices:
+        raise ValueError(f"Bind: {joints.shape[0]} weight rows for the {character.num_vertices} vertices of "
+                         f"'{arm.name}''s character")
     names = list(character.bone_names)
+    for skin in skins:
+        backup_weights(skin)
     try:
         rig_io.create_rig_bones(arm, rig, names)
-        rig_io.write_combined_weights(skin, names + list(rig.joint_names), joints, weights)
+        for skin, mesh_joints, mesh_weights in zip(skins, combined.split(joints), combined.split(weights)):
+            rig_io.write_combined_weights(skin, names + list(rig.joint_names), mesh_joints, mesh_weights)
     except Exception:  # leave the rig as it was: no joint bones, the original weights
         rig_io.remove_muscle_bones(arm)
-        restore_weights(skin)
+        for skin in skins:
+            restore_weights(skin)
         raise
-    added = armature_modifier(skin, arm) is None
-    if added:
-        mod = skin.modifiers.new("Armature", 'ARMATURE')
-        mod.object = arm
-        mod.use_vertex_groups, mod.use_bone_envelopes, mod.use_deform_preserve_volume = True, False, False
+    added = []
+    for skin in skins:
+        if armature_modifier(skin, arm) is None:
+            mod = skin.modifiers.new("Armature", 'ARMATURE')
+            mod.object = arm
+            mod.use_vertex_groups, mod.use_bone_envelopes, mod.use_deform_preserve_volume = True, False, False
+            added.append(skin.name)
     surfaces = {m.name: item.surface.name for item in rig_state(arm).muscles
                 for m in muscles if m.name == item.name and item.surface is not None}
     record = {
-        "skin": skin.name, "added_modifier": added, "bone_names": names,
+        "skin": skins[0].name, "added_modifier": skins[0].name in added,
+        "skins": [o.name for o in skins], "added_modifiers": added, "bone_names": names,
         "bone_parents": np.asarray(character.bone_parents).tolist(),
         "bone_heads": np.asarray(character.bone_heads).tolist(),
         "bone_tails": np.asarray(character.bone_tails).tolist(),
@@ -118,23 +133,45 @@ def bind(context, skin, arm):
         "surfaces": [surfaces.get(m.name, "") for m in muscles],
     }
     write_bind_record(arm, record)
-    state.skin = skin
+    set_rig_skins(arm, skins)
     state.bound, state.dirty = True, False
     context.scene.render.use_lock_interface = True  # handlers run on the render thread during F12
     runtime.forget(arm.name)
     return rig.num_joints
 
 
-def unbind(skin, arm):
-    """Remove the muscle-joint bones and their groups, restore the original weights exactly."""
+def bound_skins(arm):
+    """The meshes a bind changed: those named in the bind record, the character's recorded meshes, and any
+    mesh of the armature holding a weight backup (e.g. renamed since), in that order, each once."""
     state = rig_state(arm)
     record = json.loads(state.bind_text.as_string()) if state.bind_text else {}
+    names = record.get("skins") or ([record["skin"]] if record.get("skin") else [])
+    found = [bpy.data.objects[n] for n in names if n in bpy.data.objects]
+    found += rig_skins(arm) + [o for o in blender_io.find_skin_meshes(arm) if BACKUP_KEY in o]
+    unique = []
+    for o in found:
+        if o.type == 'MESH' and o not in unique:
+            unique.append(o)
+    return unique
+
+
+def unbind(arm):
+    """Remove the muscle-joint bones and their groups, restore the original weights of every bound mesh
+    exactly, remove the Armature modifiers Bind added."""
+    state = rig_state(arm)
+    record = json.loads(state.bind_text.as_string()) if state.bind_text else {}
+    skins = bound_skins(arm)
     rig_io.remove_muscle_bones(arm)
-    restore_weights(skin)
-    if record.get("added_modifier"):
-        mod = armature_modifier(skin, arm)
-        if mod is not None:
-            skin.modifiers.remove(mod)
+    for skin in skins:
+        restore_weights(skin)
+    added = record.get("added_modifiers")
+    if added is None:  # a bind record from before several meshes
+        added = [record["skin"]] if record.get("added_modifier") and record.get("skin") else []
+    for skin in skins:
+        if skin.name in added:
+            mod = armature_modifier(skin, arm)
+            if mod is not None:
+                skin.modifiers.remove(mod)
     if state.bind_text is not None:
         bpy.data.texts.remove(state.bind_text)
     state.bound, state.dirty = False, False

@@ -11,6 +11,14 @@ armature space, deformed with pose_matrix @ matrix_local^-1, and taken back), so
   creates, and what Blender's glTF importer creates) mesh space is world space, in metres.
 Results computed by the core in mesh space go back through armature_obj.matrix_world.
 
+A CHARACTER is the armature and every mesh it deforms (character_meshes): their vertices are taken into
+the armature's space (each mesh through its own transform), concatenated and welded by position, so pieces
+that meet at open boundaries join (combined_character). Extraction sees that surface in the "extraction
+space": the armature's space times the armature object's (uniform) world scale, i.e. at its size in the
+scene, with the armature object's rotation and translation left out (they change nothing). So an FBX/Mixamo
+export whose armature object is scaled x100 or x0.01 is analysed at its real size, and distances given to
+extraction (section spacing) are scene units. Muscles come back to the armature's space by 1/scale.
+
 Only this module (and the operators/panels) touch bpy; the algorithms live in the core.
 """
 from contextlib import contextmanager
@@ -71,6 +79,64 @@ def require_weights(mesh_obj, arm_obj):
     if not any(g.name in bones and bones[g.name].use_deform for g in mesh_obj.vertex_groups):
         raise ValueError(f"Mesh '{mesh_obj.name}' is not skinned: none of its vertex groups is a deform bone "
                          f"of '{arm_obj.name}' (weight-paint it or use Parent > With Automatic Weights)")
+
+
+def has_weights(mesh_obj, arm_obj):
+    """True when a vertex group of the mesh names a deform bone of the armature (the mesh is skinned)."""
+    bones = arm_obj.data.bones
+    return any(g.name in bones and bones[g.name].use_deform and not bones[g.name].get("myoskin_joint")
+               for g in mesh_obj.vertex_groups)
+
+
+def character_meshes(armature_obj):
+    """(meshes, skipped) of the character an armature makes: the mesh objects it deforms (Armature modifier
+    or armature parent; muscle surfaces and locators left out), by name. `skipped` lists (mesh, why) for
+    those that cannot be part of it (no vertex group of a deform bone, no vertices)."""
+    meshes, skipped = [], []
+    for o in sorted(find_skin_meshes(armature_obj), key=lambda o: o.name):
+        if o.get("myoskin_muscle") is not None:
+            continue
+        if len(o.data.vertices) == 0 or len(o.data.polygons) == 0:
+            skipped.append((o, "no faces"))
+        elif not has_weights(o, armature_obj):
+            skipped.append((o, "no weights of its bones"))
+        else:
+            meshes.append(o)
+    return meshes, skipped
+
+
+def resolve_character(obj):
+    """(meshes, armature, skipped) for the active object: a skinned mesh alone ([mesh]), or an armature with
+    every mesh it deforms (the whole character; `skipped` names the meshes left out and why). Raises
+    ValueError with a message for the user otherwise."""
+    if obj is not None and obj.type == 'ARMATURE':
+        meshes, skipped = character_meshes(obj)
+        if not meshes:
+            if skipped:
+                raise ValueError(f"Armature '{obj.name}' deforms no skinned mesh: "
+                                 + "; ".join(f"'{o.name}' has {why}" for o, why in skipped)
+                                 + " (weight-paint them or use Parent > With Automatic Weights)")
+            raise ValueError(f"Armature '{obj.name}' deforms no mesh: add an Armature modifier to the skin")
+        return meshes, obj, skipped
+    mesh_obj, arm = resolve_skinned_mesh(obj)
+    require_weights(mesh_obj, arm)
+    return [mesh_obj], arm, []
+
+
+def armature_scale(armature_obj):
+    """The armature object's uniform world scale (the cube root of its matrix's determinant, so a
+    non-uniform scale gives its geometric mean)."""
+    det = abs(float(armature_obj.matrix_world.to_3x3().determinant()))
+    if not det > 0.0:
+        raise ValueError(f"Armature '{armature_obj.name}' has a zero scale")
+    return det ** (1.0 / 3.0)
+
+
+def skipped_message(skipped):
+    """' (skipped A: why; B: why)' for a report, '' when nothing was skipped."""
+    if not skipped:
+        return ""
+    return " (skipped " + "; ".join(f"{o.name}: {why}" for o, why in skipped) + ")"
 
 
 # ------------------------------------------------------------------------------------------------
@@ -433,26 +499,108 @@ def muscles_to_meshes(muscles, collection=None, material=None, armature_obj=None
 # ------------------------------------------------------------------------------------------------
 
 
-def welded_character_from_blender(mesh_obj, armature_obj=None, tolerance=1e-6):
-    """(core Character with vertices closer than `tolerance` merged, weld_map #V of the Blender mesh ->
-    welded index). A welded vertex takes the weights of its first Blender vertex."""
+class CombinedCharacter:
+    """Several meshes of one armature as one core Character (armature space, welded by position).
+
+    meshes        the mesh objects, in order; their vertices are concatenated in that order
+    offsets       #meshes + 1: mesh k's vertices are rows offsets[k]:offsets[k+1] of the concatenation
+    weld_map      #concatenated vertices -> welded vertex (the character's vertex)
+    character     the core Character (welded; weights of a welded vertex are those of its first vertex)
+    """
+
+    def __init__(self, meshes, character, weld_map, offsets):
+        self.meshes = list(meshes)
+        self.character = character
+        self.weld_map = np.asarray(weld_map, dtype=np.int64)
+        self.offsets = list(offsets)
+
+    @property
+    def num_vertices(self):
+        return self.character.num_vertices
+
+    def rows(self, k):
+        """Welded vertex of every vertex of mesh k (#V_k)."""
+        return self.weld_map[self.offsets[k]:self.offsets[k + 1]]
+
+    def split(self, array):
+        """Per-mesh rows of a #welded-rows array: [array[rows(k)] for every mesh]."""
+        array = np.asarray(array)
+        return [array[self.rows(k)] for k in range(len(self.meshes))]
+
+    def mask(self, masks):
+        """#welded booleans from one #V_k boolean mask per mesh (None = none of that mesh's vertices)."""
+        out = np.zeros(self.num_vertices, dtype=bool)
+        for k, m in enumerate(masks):
+            if m is not None:
+                out[self.rows(k)[np.asarray(m, dtype=bool)]] = True
+        return out
+
+
+WELD_RELATIVE = 1e-4  # weld tolerance, relative to the median edge length (~1e-6 m on a 13k-vertex body)
+
+
+def _median_edge(vertices, triangles):
+    if len(triangles) == 0:
+        return 0.0
+    t = np.asarray(triangles)
+    v = np.asarray(vertices)
+    edges = np.concatenate([v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 1]], v[t[:, 0]] - v[t[:, 2]]])
+    return float(np.median(np.linalg.norm(edges, axis=1)))
+
+
+def combined_character(meshes, armature_obj, name=None, weld=True):
+    """A CombinedCharacter: every mesh at rest in the armature's space (each through its own transform),
+    concatenated, with the skeleton of the armature; welded by position when `weld` (vertices closer than
+    WELD_RELATIVE x the median edge length merge, so UV seams and pieces meeting at open boundaries
+    join)."""
     core = core_loader.core()
-    character = character_from_blender(mesh_obj, armature_obj)
-    vertices, triangles, weld_map = core.weld_mesh(np.asarray(character.vertices),
-                                                   np.asarray(character.triangles), tolerance)
-    weld_map = np.asarray(weld_map, dtype=np.int64)
-    if len(vertices) == character.num_vertices:
-        return character, weld_map
-    _, first = np.unique(weld_map, return_index=True)
-    joints = np.asarray(character.weight_joints)
-    weights = np.asarray(character.weight_values)
-    if joints.size:
-        joints, weights = joints[first], weights[first]
-    welded = core.character_from_arrays(
-        character.name, vertices, triangles, list(character.bone_names), np.asarray(character.bone_parents),
-        np.asarray(character.bone_heads), np.asarray(character.bone_tails), np.asarray(character.bone_rest),
+    meshes = list(meshes)
+    if not meshes:
+        raise ValueError("No mesh to build the character from")
+    parts = [character_from_blender(m, armature_obj) for m in meshes]
+    offsets = np.concatenate(([0], np.cumsum([p.num_vertices for p in parts]))).tolist()
+    vertices = np.concatenate([np.asarray(p.vertices) for p in parts])
+    triangles = np.concatenate([np.asarray(p.triangles) + offsets[k] for k, p in enumerate(parts)])
+    k_max = max((np.asarray(p.weight_joints).shape[1] if np.asarray(p.weight_joints).size else 0) for p in parts)
+    joints = np.full((len(vertices), k_max), -1, dtype=np.int32)
+    weights = np.zeros((len(vertices), k_max), dtype=np.float64)
+    for k, p in enumerate(parts):
+        pj, pw = np.asarray(p.weight_joints), np.asarray(p.weight_values)
+        if pj.size:
+            joints[offsets[k]:offsets[k + 1], :pj.shape[1]] = pj
+            weights[offsets[k]:offsets[k + 1], :pw.shape[1]] = pw
+    weld_map = np.arange(len(vertices), dtype=np.int64)
+    if weld:
+        tolerance = WELD_RELATIVE * _median_edge(vertices, triangles)
+        welded_v, welded_t, weld_map = core.weld_mesh(vertices, triangles, tolerance)
+        weld_map = np.asarray(weld_map, dtype=np.int64)
+        if len(welded_v) != len(vertices):
+            _, first = np.unique(weld_map, return_index=True)
+            vertices, triangles = np.asarray(welded_v), np.asarray(welded_t)
+            if k_max:
+                joints, weights = joints[first], weights[first]
+    first = parts[0]
+    character = core.character_from_arrays(
+        name or (meshes[0].name if len(meshes) == 1 else armature_obj.name), vertices,
+        np.ascontiguousarray(triangles, dtype=np.int32), list(first.bone_names), np.asarray(first.bone_parents),
+        np.asarray(first.bone_heads), np.asarray(first.bone_tails), np.asarray(first.bone_rest),
         np.ascontiguousarray(joints), np.ascontiguousarray(weights))
-    return welded, weld_map
+    return CombinedCharacter(meshes, character, weld_map, offsets)
+
+
+def scaled_character(character, scale):
+    """The same core Character with every position multiplied by `scale` (vertices, bone heads and tails,
+    the translations of the rest matrices): the extraction space (module docstring)."""
+    if scale == 1.0:
+        return character
+    rest = np.array(character.bone_rest, dtype=np.float64)
+    rest[:, :3, 3] *= scale
+    return core_loader.core().character_from_arrays(
+        character.name, np.asarray(character.vertices) * scale, np.asarray(character.triangles),
+        list(character.bone_names), np.asarray(character.bone_parents), np.asarray(character.bone_heads) * scale,
+        np.asarray(character.bone_tails) * scale, np.ascontiguousarray(rest),
+        np.ascontiguousarray(np.asarray(character.weight_joints)),
+        np.ascontiguousarray(np.asarray(character.weight_values)))
 
 
 def welded_mask(mask, weld_map, num_welded):

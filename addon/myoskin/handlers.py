@@ -76,11 +76,12 @@ def rebind_pending(force=False):
             for name in sorted(pending["armatures"]):
                 arm = bpy.data.objects.get(name)
                 state = arm.myoskin if arm is not None else None
-                if state is None or not state.bound or not state.dirty or state.skin is None:
+                skins = binding.bound_skins(arm) if state is not None else []
+                if state is None or not state.bound or not state.dirty or not skins:
                     continue
                 try:
-                    binding.unbind(state.skin, arm)
-                    binding.bind(bpy.context, state.skin, arm)
+                    binding.unbind(arm)
+                    binding.bind(bpy.context, skins, arm)
                     live.update_armature(arm, force=True)
                 except (ValueError, RuntimeError) as e:
                     state.dirty = True

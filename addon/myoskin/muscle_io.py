@@ -16,7 +16,7 @@ import numpy as np
 from mathutils import Matrix
 
 from . import blender_io, core_loader
-from .state import rig_state
+from .state import rig_state, set_rig_skins
 
 LOCATOR_ENDS = ("origin", "insertion")
 COLLECTION_NAME = "Muscles"
@@ -189,7 +189,7 @@ def make_locator(arm_obj, item, end, position):
     if locator is None or locator.name not in bpy.data.objects:
         locator = bpy.data.objects.new(f"{item.name}.{end}", None)
         locator.empty_display_type = 'SPHERE' if end == "origin" else 'CUBE'
-        locator.empty_display_size = 0.006
+        locator.empty_display_size = 0.006 / blender_io.armature_scale(arm_obj)  # 6 mm in the scene
         muscles_collection(arm_obj).objects.link(locator)
         setattr(item, end + "_locator", locator)
     locator["myoskin_muscle"] = item.name
@@ -318,16 +318,41 @@ def clear_muscles(arm_obj):
         remove_muscle(arm_obj, len(state.muscles) - 1)
 
 
-def set_muscles(arm_obj, skin_obj, muscles):
-    """Replace an armature's muscles by core Muscles (extraction result); writes muscles.json."""
+def set_muscles(arm_obj, skins, muscles):
+    """Replace an armature's muscles by core Muscles (extraction result) of the character made of the mesh
+    objects `skins` (recorded in the state); writes muscles.json."""
     state = rig_state(arm_obj)
     clear_muscles(arm_obj)
-    state.skin = skin_obj
+    set_rig_skins(arm_obj, list(skins))
     items = [add_muscle(arm_obj, m) for m in muscles]
     state.active_index = 0
     state.dirty = state.bound
     sync_text(arm_obj)
     return items
+
+
+def scale_muscles(muscles, factor):
+    """Core Muscles with every position and length multiplied by `factor` (root curve, origin, insertion,
+    section centres and radii, wrap radius; directions and u unchanged), through muscles.json. The
+    surfaces are not carried: add_muscle re-lofts them (reattach_muscle)."""
+    if factor == 1.0 or not muscles:
+        return list(muscles)
+    core = core_loader.core()
+    doc = json.loads(core.muscles_to_json(list(muscles), indent=-1))
+
+    def scaled(p):
+        return [float(x) * factor for x in p]
+
+    for m in doc["muscles"]:
+        for end in LOCATOR_ENDS:
+            m[end]["position"] = scaled(m[end]["position"])
+        m["root_curve"] = [scaled(p) for p in m["root_curve"]]
+        for sec in m["sections"]:
+            sec["center"] = scaled(sec["center"])
+            sec["a"], sec["b"] = float(sec["a"]) * factor, float(sec["b"]) * factor
+        if "radius" in m.get("wrap", {}):
+            m["wrap"]["radius"] = float(m["wrap"]["radius"]) * factor
+    return list(core.muscles_from_json(json.dumps(doc)))
 
 
 def find_item(arm_obj, name):

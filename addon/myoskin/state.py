@@ -5,7 +5,10 @@ Everything is stored on the character's ARMATURE OBJECT, so it is saved with the
 undo, and is readable without the add-on (ID properties and a Text datablock need no registered classes):
 
     armature_obj.myoskin                  MyoskinRigState (PointerProperty on bpy.types.Object)
-        .skin                             the skinned mesh object the muscles belong to
+        .skin                             the (first) skinned mesh object the muscles belong to
+        .skins[i].object                  every mesh of the character the muscles belong to (Extract with
+                                          the armature active: all the meshes it deforms; with a mesh
+                                          active: that mesh); Bind, Unbind and the bakes act on all of them
         .collection                       the "Muscles" collection holding the muscle surface objects
         .muscles_text                     Text datablock "<armature>.muscles.json": the whole muscles.json
                                           (format myoskin.muscles v1), rewritten after every change
@@ -27,8 +30,8 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
         .bind_text                        Text datablock "<armature>.bind.json", the bind record: skeleton
                                           (names, parents, heads, tails, rest), the bound muscles' json,
                                           joint names, surface object names (live update rebuilds from it)
-    skin_obj["myoskin_original_weights"]  ID property: the skin's vertex groups before Bind (Unbind
-                                          restores them exactly)
+    skin_obj["myoskin_original_weights"]  ID property on every bound mesh: its vertex groups before Bind
+                                          (Unbind restores them exactly)
 
 Converting this to and from core Muscle lists is muscle_io's job; no core call here (only property
 definitions and their update callbacks, which hand the work to the layers above through runtime.dispatch;
@@ -111,8 +114,14 @@ class MyoskinMuscle(bpy.types.PropertyGroup):
     surface: PointerProperty(name="Surface", type=bpy.types.Object)
 
 
+class MyoskinSkin(bpy.types.PropertyGroup):
+    object: PointerProperty(name="Mesh", type=bpy.types.Object, description="A mesh of the character")
+
+
 class MyoskinRigState(bpy.types.PropertyGroup):
-    skin: PointerProperty(name="Skin", type=bpy.types.Object, description="The skinned mesh of the muscles")
+    skin: PointerProperty(name="Skin", type=bpy.types.Object, description="The (first) skinned mesh of the muscles")
+    skins: CollectionProperty(type=MyoskinSkin, name="Skins",
+                              description="Every mesh of the character the muscles belong to")
     collection: PointerProperty(name="Muscles Collection", type=bpy.types.Collection)
     muscles_text: PointerProperty(name="muscles.json", type=bpy.types.Text)
     muscles: CollectionProperty(type=MyoskinMuscle)
@@ -130,6 +139,27 @@ class MyoskinRigState(bpy.types.PropertyGroup):
                                             "are kept and renormalised; 4 is what game engines take)")
     bind_text: PointerProperty(name="Bind Record", type=bpy.types.Text,
                                description="<armature>.bind.json: what Bind built (live update rebuilds from it)")
+
+
+def rig_skins(arm_obj):
+    """The meshes of the character an armature's muscles belong to (those still in the file), in order;
+    files from before several meshes were stored give [skin]."""
+    state = rig_state(arm_obj)
+    if state is None:
+        return []
+    skins = [s.object for s in state.skins if s.object is not None and s.object.name in bpy.data.objects]
+    if not skins and state.skin is not None and state.skin.name in bpy.data.objects:
+        skins = [state.skin]
+    return skins
+
+
+def set_rig_skins(arm_obj, skins):
+    """Record the meshes of the character (state.skin = the first)."""
+    state = rig_state(arm_obj)
+    state.skins.clear()
+    for obj in skins:
+        state.skins.add().object = obj
+    state.skin = skins[0] if skins else None
 
 
 def rig_state(arm_obj):
@@ -167,7 +197,7 @@ class MyoskinSceneSettings(bpy.types.PropertyGroup):
     pc2_path: StringProperty(name="PC2", subtype='FILE_PATH', default="//skin.pc2")
 
 
-classes = (MyoskinMuscle, MyoskinRigState, MyoskinSceneSettings)
+classes = (MyoskinMuscle, MyoskinSkin, MyoskinRigState, MyoskinSceneSettings)
 
 
 def register():

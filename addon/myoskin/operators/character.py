@@ -71,20 +71,29 @@ class MYOSKIN_OT_add_synthetic_arm(bpy.types.Operator):
 
 
 class MYOSKIN_OT_character_info(bpy.types.Operator):
-    """Report counts and topology of the active skinned mesh (through the core)"""
+    """Report counts and topology of the active skinned mesh, or with the armature active of the whole
+    character (every mesh it deforms, welded), through the core"""
     bl_idname = "myoskin.character_info"
     bl_label = "Character Info"
     bl_options = {'REGISTER'}
 
     def execute(self, context):
         try:
-            mesh_obj, arm_obj = blender_io.resolve_skinned_mesh(context.active_object)
-            character = blender_io.character_from_blender(mesh_obj, arm_obj)
+            obj = context.active_object
+            if obj is not None and obj.type == 'ARMATURE':  # the whole character, its meshes welded
+                meshes, arm_obj, skipped = blender_io.resolve_character(obj)
+                character = blender_io.combined_character(meshes, arm_obj).character
+                extra = (f" [{len(meshes)} mesh(es): {', '.join(o.name for o in meshes)}]"
+                         + blender_io.skipped_message(skipped))
+            else:
+                mesh_obj, arm_obj = blender_io.resolve_skinned_mesh(obj)
+                character = blender_io.character_from_blender(mesh_obj, arm_obj)
+                extra = ""
             summary = character_summary(character)
         except Exception as e:  # noqa: BLE001
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}
-        self.report({'INFO'}, format_summary(summary))
+        self.report({'INFO'}, format_summary(summary) + extra)
         return {'FINISHED'}
 
 

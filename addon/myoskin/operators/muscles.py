@@ -6,33 +6,68 @@ import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from .. import blender_io, core_loader, muscle_io
-from ..blender_io import require_weights
 from ..preferences import get_preferences
-from ..state import LIMITS, rig_state
+from ..state import LIMITS, rig_skins, rig_state, set_rig_skins
+
+
+def _muscle_object_armature(obj):
+    """The armature of a muscle object (surface, locator), else None."""
+    if obj is not None and obj.get("myoskin_muscle") is not None and obj.parent is not None \
+            and obj.parent.type == 'ARMATURE':
+        return obj.parent
+    return None
 
 
 def resolve_rig(obj):
-    """(skin mesh, armature) for the active object: the skin, its armature, or one of the muscle objects
-    (surface, locator). ValueError with a message for the user otherwise."""
-    if obj is not None and obj.get("myoskin_muscle") is not None and obj.parent is not None \
-            and obj.parent.type == 'ARMATURE':
-        arm = obj.parent
-        skin = rig_state(arm).skin
-        if skin is None:
+    """(skin meshes, armature) for the active object (the skin, its armature, or one of the muscle objects):
+    the meshes the armature's muscles were extracted from when it has muscles, else the character of the
+    active object (blender_io.resolve_character). ValueError with a message for the user otherwise."""
+    arm = _muscle_object_armature(obj)
+    if arm is not None:
+        skins = rig_skins(arm)
+        if not skins:
             raise ValueError(f"Armature '{arm.name}' has no skin recorded: select the skinned mesh")
-        return skin, arm
-    if obj is not None and obj.type == 'ARMATURE' and rig_state(obj).skin is not None:
-        return rig_state(obj).skin, obj
-    return blender_io.resolve_skinned_mesh(obj)
+        return skins, arm
+    arm = obj if obj is not None and obj.type == 'ARMATURE' else blender_io.find_armature(obj)
+    if arm is not None and arm.type == 'ARMATURE' and rig_skins(arm):
+        return rig_skins(arm), arm
+    meshes, arm, _skipped = blender_io.resolve_character(obj)
+    return meshes, arm
 
 
 def resolve_extracted(context):
-    """(skin, armature, state) when muscles were extracted; ValueError otherwise."""
-    skin, arm = resolve_rig(context.active_object)
+    """(skin meshes, armature, state) when muscles were extracted; ValueError otherwise."""
+    skins, arm = resolve_rig(context.active_object)
     state = rig_state(arm)
     if len(state.muscles) == 0:
         raise ValueError(f"No muscles on '{arm.name}': run Extract Muscles first")
-    return skin, arm, state
+    return skins, arm, state
+
+
+def character_label(skins, arm):
+    """How a report names the character: the mesh, or the armature and its meshes."""
+    if len(skins) == 1:
+        return skins[0].name
+    return f"{arm.name} ({len(skins)} meshes: {', '.join(o.name for o in skins)})"
+
+
+def selection_masks(skins, faces=False):
+    """Per mesh, its selected vertices (or vertices of selected faces): the meshes in Edit Mode when any
+    is, else every mesh's stored selection."""
+    editing = [o for o in skins if o.mode == 'EDIT']
+    return [blender_io.selected_vertex_mask(o, faces=faces) if not editing or o in editing else None
+            for o in skins]
+
+
+def group_masks(skins, group_name):
+    """Per mesh, the vertices of its vertex group `group_name` (None where it has none); ValueError when no
+    mesh has the group."""
+    masks = [blender_io.vertex_group_mask(o, group_name) if group_name in o.vertex_groups else None
+             for o in skins]
+    if all(m is None for m in masks):
+        raise ValueError(f"{'Mesh' if len(skins) == 1 else 'Meshes'} {', '.join(repr(o.name) for o in skins)}: "
+                         f"no vertex group '{group_name}'")
+    return masks
 
 
 class _MuscleOperator:
@@ -70,47 +105,55 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
 
     def run(self, context):
         prefs = get_preferences(context)
-        skin, arm = resolve_rig(context.active_object)
+        obj = context.active_object
+        if _muscle_object_armature(obj) is not None:
+            skins, arm = resolve_rig(obj)
+            skipped = []
+        else:  # a mesh alone, or the armature with every mesh it deforms
+            skins, arm, skipped = blender_io.resolve_character(obj)
         state = rig_state(arm)
         if state.bound:
             raise ValueError(f"'{arm.name}' is bound: Unbind before extracting again")
-        require_weights(skin, arm)
+        for skin in skins:
+            blender_io.require_weights(skin, arm)
         spacing = prefs.section_spacing if self.spacing < 0 else self.spacing
         min_sections = prefs.min_sections if self.min_sections < 0 else self.min_sections
         min_confidence = prefs.min_confidence if self.min_confidence < 0 else self.min_confidence
         wm = context.window_manager
         wm.progress_begin(0, 4)
         try:
-            character, weld_map = blender_io.welded_character_from_blender(skin, arm)
+            combined = blender_io.combined_character(skins, arm)
+            scale = blender_io.armature_scale(arm)
+            character = blender_io.scaled_character(combined.character, scale)  # the extraction space
             wm.progress_update(1)
             mask = None
             if self.limit == 'SELECTED':
-                source = blender_io.selected_vertex_mask(skin)
-                if not source.any():
-                    raise ValueError(f"No vertices selected on '{skin.name}' (Limit To = Selected Vertices)")
-                mask = blender_io.welded_mask(source, weld_map, character.num_vertices)
+                mask = combined.mask(selection_masks(skins))
+                if not mask.any():
+                    raise ValueError(f"No vertices selected on {character_label(skins, arm)} "
+                                     f"(Limit To = Selected Vertices)")
             elif self.limit == 'GROUP':
-                source = blender_io.vertex_group_mask(skin, self.vertex_group)
-                if not source.any():
+                mask = combined.mask(group_masks(skins, self.vertex_group))
+                if not mask.any():
                     raise ValueError(f"Vertex group '{self.vertex_group}' is empty")
-                mask = blender_io.welded_mask(source, weld_map, character.num_vertices)
             muscles, report = core_loader.core().extract_muscles(
                 character, spacing=spacing, vertex_mask=mask, min_confidence=min_confidence,
                 min_sections=min_sections, joint_wrap=self.joint_wrap)
             wm.progress_update(2)
+            muscles = muscle_io.scale_muscles(muscles, 1.0 / scale)  # back to the armature's space
             for m in muscles:
                 m.joints = prefs.joints_per_muscle
                 m.bulge = prefs.bulge_factor
-            muscle_io.set_muscles(arm, skin, muscles)
+            muscle_io.set_muscles(arm, skins, muscles)
             wm.progress_update(3)
         finally:
             wm.progress_end()
         seconds = sum(report["timings"].values())
-        message = (f"Extracted {len(muscles)} muscles from {skin.name} ({report['sections']} sections, "
-                   f"{report['bumps']} bumps, {seconds:.2f} s)")
+        message = (f"Extracted {len(muscles)} muscles from {character_label(skins, arm)} ({report['sections']} "
+                   f"sections, {report['bumps']} bumps, {seconds:.2f} s)")
         if not muscles:
             message += ": no significant bumps (smooth skin?); lower Min Confidence or mark a region"
-        return message
+        return message + blender_io.skipped_message(skipped)
 
 
 class MYOSKIN_OT_add_muscle_from_region(_MuscleOperator, bpy.types.Operator):
@@ -124,19 +167,22 @@ class MYOSKIN_OT_add_muscle_from_region(_MuscleOperator, bpy.types.Operator):
     vertex_group: StringProperty(name="Vertex Group")
 
     def run(self, context):
-        skin, arm = resolve_rig(context.active_object)
-        require_weights(skin, arm)
+        skins, arm = resolve_rig(context.active_object)
+        for skin in skins:
+            blender_io.require_weights(skin, arm)
         state = rig_state(arm)
+        combined = blender_io.combined_character(skins, arm)
         if self.source == 'FACES':
-            source = blender_io.selected_vertex_mask(skin, faces=True)
-            if not source.any():
-                raise ValueError(f"No faces selected on '{skin.name}': select the region in Edit Mode")
+            region = combined.mask(selection_masks(skins, faces=True))
+            if not region.any():
+                raise ValueError(f"No faces selected on {character_label(skins, arm)}: select the region in "
+                                 f"Edit Mode")
         else:
-            source = blender_io.vertex_group_mask(skin, self.vertex_group)
-            if not source.any():
+            region = combined.mask(group_masks(skins, self.vertex_group))
+            if not region.any():
                 raise ValueError(f"Vertex group '{self.vertex_group}' is empty")
-        character, weld_map = blender_io.welded_character_from_blender(skin, arm)
-        region = blender_io.welded_mask(source, weld_map, character.num_vertices)
+        scale = blender_io.armature_scale(arm)
+        character = blender_io.scaled_character(combined.character, scale)  # the extraction space
         prefs = get_preferences(context)
         # min_confidence 1: only the forced muscle survives (forced muscles are always kept).
         muscles, report = core_loader.core().extract_muscles(
@@ -148,9 +194,10 @@ class MYOSKIN_OT_add_muscle_from_region(_MuscleOperator, bpy.types.Operator):
         vertices = np.asarray(character.vertices)[region]
         best = max(muscles, key=lambda m: int((np.linalg.norm(
             vertices[:, None, :] - np.asarray(m.section_centers)[None, :, :], axis=2).min(axis=1) < 0.05).sum()))
+        best = muscle_io.scale_muscles([best], 1.0 / scale)[0]
         best.joints, best.bulge = prefs.joints_per_muscle, prefs.bulge_factor
-        if state.skin is None:
-            state.skin = skin
+        if not rig_skins(arm):
+            set_rig_skins(arm, skins)
         item = muscle_io.add_muscle(arm, best)
         state.active_index = len(state.muscles) - 1
         state.dirty = state.bound

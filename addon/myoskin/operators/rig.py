@@ -21,19 +21,20 @@ class MYOSKIN_OT_bind(_MuscleOperator, bpy.types.Operator):
     bl_label = "Bind"
 
     def run(self, context):
-        skin, arm, state = resolve_extracted(context)
+        skins, arm, state = resolve_extracted(context)
         wm = context.window_manager
         wm.progress_begin(0, 2)
         try:
             if state.bound:
-                binding.unbind(skin, arm)
+                binding.unbind(arm)
             wm.progress_update(1)
-            joints = binding.bind(context, skin, arm)
+            joints = binding.bind(context, skins, arm)
             live.update_armature(arm, force=True)
             runtime.clear_error(arm)
         finally:
             wm.progress_end()
-        return f"Bound {sum(1 for m in state.muscles if m.enabled)} muscles ({joints} joints) to {arm.name}"
+        return (f"Bound {sum(1 for m in state.muscles if m.enabled)} muscles ({joints} joints) to {arm.name}"
+                + (f" and its {len(skins)} meshes ({', '.join(o.name for o in skins)})" if len(skins) > 1 else ""))
 
 
 class MYOSKIN_OT_unbind(_MuscleOperator, bpy.types.Operator):
@@ -42,12 +43,13 @@ class MYOSKIN_OT_unbind(_MuscleOperator, bpy.types.Operator):
     bl_label = "Unbind"
 
     def run(self, context):
-        skin, arm = resolve_rig(context.active_object)
+        _skins, arm = resolve_rig(context.active_object)
         if not rig_state(arm).bound:
             raise ValueError(f"'{arm.name}' is not bound")
-        binding.unbind(skin, arm)
+        skins = binding.bound_skins(arm)
+        binding.unbind(arm)
         runtime.clear_error(arm)
-        return f"Unbound {arm.name}: original weights restored"
+        return f"Unbound {arm.name}: original weights of {', '.join(o.name for o in skins)} restored"
 
 
 class MYOSKIN_OT_clear_error(bpy.types.Operator):
@@ -64,10 +66,10 @@ class MYOSKIN_OT_clear_error(bpy.types.Operator):
 
 
 def require_bound(context):
-    skin, arm, state = resolve_extracted(context)
+    _skins, arm, state = resolve_extracted(context)
     if not state.bound:
         raise ValueError(f"'{arm.name}' is not bound: Bind first")
-    return skin, arm, state
+    return binding.bound_skins(arm), arm, state
 
 
 class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
@@ -80,7 +82,7 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
     frame_end: IntProperty(name="End", default=120)
 
     def run(self, context):
-        skin, arm, state = require_bound(context)
+        _skins, arm, state = require_bound(context)
         if self.frame_end < self.frame_start:
             raise ValueError(f"Frame range {self.frame_start}-{self.frame_end} is empty")
         scene = context.scene
@@ -124,20 +126,31 @@ class MYOSKIN_OT_export_gltf(_MuscleOperator, bpy.types.Operator):
     filepath: StringProperty(name="File", subtype='FILE_PATH', default="//character.glb")
 
     def run(self, context):
-        skin, arm = resolve_rig(context.active_object)
+        skins, arm = resolve_rig(context.active_object)
         path = bpy.path.abspath(self.filepath)
         if not path or path.endswith(os.sep):
             raise ValueError("Give a file name for the glTF export")
         os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
         for obj in context.view_layer.objects:
-            obj.select_set(obj in (skin, arm))
+            obj.select_set(obj == arm or obj in skins)
         gltf_io.export_gltf(path)
-        return f"Exported {skin.name} + {arm.name} ({len(arm.data.bones)} bones) to {path}"
+        return (f"Exported {', '.join(o.name for o in skins)} + {arm.name} ({len(arm.data.bones)} bones) "
+                f"to {path}")
+
+
+def pc2_paths(path, skins):
+    """The PC2 file of each mesh: `path` itself for one mesh; for several, one file per mesh beside it,
+    named <path without .pc2>_<mesh name>.pc2 (the name made file-safe)."""
+    if len(skins) == 1:
+        return [path]
+    root, ext = os.path.splitext(path)
+    return [f"{root}_{bpy.path.clean_name(o.name)}{ext or '.pc2'}" for o in skins]
 
 
 class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
     """Bake the skin over a frame range to a PC2 point cache computed by the core (Equation 3 with the
-    muscle joints), for a Mesh Cache modifier or other tools"""
+    muscle joints), for a Mesh Cache modifier or other tools; a character of several meshes gets one file
+    per mesh, <file>_<mesh>.pc2"""
     bl_idname = "myoskin.bake_pc2"
     bl_label = "Bake PC2"
     bl_options = {'REGISTER'}
@@ -148,45 +161,53 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
     add_modifier: BoolProperty(name="Add Mesh Cache Modifier", default=False)
 
     def run(self, context):
-        skin, arm, state = require_bound(context)
+        skins, arm, state = require_bound(context)
         if self.frame_end < self.frame_start:
             raise ValueError(f"Frame range {self.frame_start}-{self.frame_end} is empty")
         path = bpy.path.abspath(self.filepath)
-        frames = bake_skin_frames(context, skin, arm, self.frame_start, self.frame_end)
+        paths = pc2_paths(path, skins)
+        frames = bake_skin_frames(context, skins, arm, self.frame_start, self.frame_end)
         os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
-        core_loader.core().write_pc2(path, frames, float(self.frame_start), 1.0)
-        if self.add_modifier:
-            mod = skin.modifiers.new("Myoskin PC2", 'MESH_CACHE')
-            mod.cache_format, mod.filepath = 'PC2', path
-        return f"Baked {len(frames)} frames of {skin.name} to {path}"
+        for skin, mesh_path, mesh_frames in zip(skins, paths, frames):
+            core_loader.core().write_pc2(mesh_path, mesh_frames, float(self.frame_start), 1.0)
+            if self.add_modifier:
+                mod = skin.modifiers.new("Myoskin PC2", 'MESH_CACHE')
+                mod.cache_format, mod.filepath = 'PC2', mesh_path
+        count = self.frame_end - self.frame_start + 1
+        if len(skins) == 1:
+            return f"Baked {count} frames of {skins[0].name} to {path}"
+        return f"Baked {count} frames of {len(skins)} meshes to " + ", ".join(paths)
 
 
-def bake_skin_frames(context, skin, arm, start, end):
-    """#frames by #V by 3 float32 skin positions (mesh object space) from the core's skinner."""
+def bake_skin_frames(context, skins, arm, start, end):
+    """Per mesh of `skins`, #frames by #V by 3 float32 skin positions (mesh object space) from the core's
+    skinner; the skeleton and the rig are evaluated once per frame for all of them."""
     core = core_loader.core()
     rig = live.live_rig(arm)
     names = rig.bone_names + rig.joint_names
-    joints, weights = rig_io.read_combined_weights(skin, names)
-    to_arm = blender_io.mesh_to_armature_matrix(skin, arm)
-    rest = blender_io.mesh_vertices(skin.data) @ to_arm[:3, :3].T + to_arm[:3, 3]
-    skinner = core.Skinner(rest, joints, weights, len(names))
-    to_mesh = np.linalg.inv(to_arm)
+    meshes = []
+    for skin in skins:
+        joints, weights = rig_io.read_combined_weights(skin, names)
+        to_arm = blender_io.mesh_to_armature_matrix(skin, arm)
+        rest = blender_io.mesh_vertices(skin.data) @ to_arm[:3, :3].T + to_arm[:3, 3]
+        meshes.append((core.Skinner(rest, joints, weights, len(names)), np.linalg.inv(to_arm),
+                       np.empty((end - start + 1, len(rest), 3), dtype=np.float32)))
     rest_bones = np.asarray(rig.character.bone_rest)
     bind_inv = np.linalg.inv(np.asarray(rig.rig.bind_matrices))
     scene = context.scene
     current = scene.frame_current
-    out = np.empty((end - start + 1, len(rest), 3), dtype=np.float32)
     try:
         for k, frame in enumerate(range(start, end + 1)):
             scene.frame_set(frame)
             pose = live.evaluated_pose(arm, rig, context.evaluated_depsgraph_get())
             joint_matrices = rig.rig.evaluate(pose)["joint_matrices"]
             transforms = np.concatenate([pose @ np.linalg.inv(rest_bones), joint_matrices @ bind_inv])
-            posed = skinner.deform(transforms).astype(np.float64)
-            out[k] = posed @ to_mesh[:3, :3].T + to_mesh[:3, 3]
+            for skinner, to_mesh, out in meshes:
+                posed = skinner.deform(transforms).astype(np.float64)
+                out[k] = posed @ to_mesh[:3, :3].T + to_mesh[:3, 3]
     finally:
         scene.frame_set(current)
-    return out
+    return [out for _skinner, _to_mesh, out in meshes]
 
 
 classes = (MYOSKIN_OT_bind, MYOSKIN_OT_unbind, MYOSKIN_OT_bake_action, MYOSKIN_OT_export_gltf,

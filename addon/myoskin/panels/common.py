@@ -3,7 +3,7 @@
 import textwrap
 
 from .. import core_loader, runtime
-from ..blender_io import find_armature
+from ..blender_io import find_armature, find_skin_meshes
 
 
 def draw_wrapped(layout, text, context=None, icon='NONE'):
@@ -57,6 +57,10 @@ def draw_character_info(layout, obj):
         col.label(text=f"{len(obj.vertex_groups)} vertex groups")
     else:
         col.label(text=f"{obj.name} ({obj.type.lower()})", icon='OBJECT_DATA')
+    if obj.type == 'ARMATURE':  # the whole character: what Extract uses with the armature active
+        meshes = [o.name for o in find_skin_meshes(obj) if o.get("myoskin_muscle") is None]
+        col.label(text=f"Character: {len(meshes)} mesh(es) {', '.join(meshes[:4])}"
+                       f"{' ...' if len(meshes) > 4 else ''}", icon='OUTLINER_OB_MESH')
     if arm is not None:
         col.label(text=f"Armature {arm.name}: {len(arm.data.bones)} bones", icon='ARMATURE_DATA')
     else:

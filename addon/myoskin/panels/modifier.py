@@ -4,6 +4,7 @@ import bpy
 
 from .. import core_loader
 from ..blender_io import find_armature
+from ..state import rig_skins
 from .common import draw_core_status, draw_last_error
 
 
@@ -28,9 +29,12 @@ class MYOSKIN_PT_skin_muscles(bpy.types.Panel):
         layout.label(text=f"Skinned by {arm.name} ({len(arm.data.bones)} bones)", icon='ARMATURE_DATA')
         draw_last_error(layout, arm, context)
         state = arm.myoskin
-        if state.skin is not None and state.skin != context.object:
-            layout.label(text=f"Muscles belong to {state.skin.name}", icon='INFO')
+        skins = rig_skins(arm)
+        if skins and context.object not in skins:
+            layout.label(text=f"Muscles belong to {', '.join(o.name for o in skins)}", icon='INFO')
             return
+        if len(skins) > 1:
+            layout.label(text=f"Character of {len(skins)} meshes: {', '.join(o.name for o in skins)}", icon='INFO')
         enabled = sum(1 for m in state.muscles if m.enabled)
         layout.label(text=f"{len(state.muscles)} muscles ({enabled} enabled)", icon='MOD_SKIN')
         row = layout.row(align=True)

@@ -5,6 +5,7 @@ import bpy
 
 from .. import core_loader
 from ..blender_io import find_armature
+from ..state import rig_skins
 from .common import draw_character_info, draw_core_status, draw_last_error
 
 
@@ -149,7 +150,8 @@ class MYOSKIN_PT_bind(_WorkflowStep, bpy.types.Panel):
         row.operator("myoskin.unbind", icon='UNLINKED')
         layout.prop(state, "max_influences")
         if state.bound:
-            layout.label(text=f"Bound to {state.skin.name if state.skin else '?'}", icon='CHECKMARK')
+            skins = rig_skins(arm)
+            layout.label(text=f"Bound to {', '.join(o.name for o in skins) if skins else '?'}", icon='CHECKMARK')
             layout.prop(state, "live")
             layout.prop(state, "auto_rebind")
             if state.dirty:
