@@ -1,6 +1,7 @@
 // `myoskin`: the command-line tool for batch pipelines (no Blender needed).
 //   myoskin info CHARACTER                       counts, topology, bounding box, bones
 //   myoskin generate arm -o DIR [--seed N] [--muscle-scale S]   the procedural test character
+//   myoskin roles CHARACTER [-o roles.json]      the role extraction gives each bone
 //   myoskin extract CHARACTER -o muscles.json    muscle extraction
 //   myoskin deform CHARACTER --muscles M --pose P -o out.obj|.pc2
 // Every failure prints one line "myoskin: error: ..." and exits non-zero.
@@ -18,11 +19,14 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "myoskin/deformation.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
 #include "myoskin/io.h"
 #include "myoskin/pose_io.h"
+#include "myoskin/sections.h"
 #include "myoskin/skinning.h"
 #include "myoskin/synthetic_character.h"
 
@@ -64,27 +68,86 @@ Args parse(int argc, char** argv, int first, const std::vector<std::string>& wit
 
 void usage(std::ostream& out) {
   out << "usage: myoskin <command> [arguments]\n"
-         "  info CHARACTER [--skeleton SKEL.json] [--bones]   counts, topology, bounding box, bones\n"
+         "  info CHARACTER [--skeleton SKEL.json] [--bones]   counts, topology, bounding box, bones, meshes\n"
+         "  roles CHARACTER [--roles ROLES.json] [-o ROLES.json]   the role extraction gives each bone (limb, spine,\n"
+         "          neck, shoulder, pelvis, ignore); edit the written file and pass it to extract --roles\n"
          "  generate arm -o DIR [--seed N] [--muscle-scale S]  write the procedural test arm\n"
          "                                                      (arm.obj, arm.skeleton.json, arm.truth.json)\n"
          "  extract CHARACTER -o muscles.json [--spacing M] [--min-confidence C] [--min-sections N]\n"
-         "          [--max-per-region N] [--min-evidence E] [--no-surfaces]   extract muscles from the skin\n"
+         "          [--max-per-region N] [--min-evidence E] [--no-surfaces] [--mesh NAME] [--roles ROLES.json]\n"
+         "          extract muscles from the skin (the whole character: every mesh its skin deforms, or --mesh)\n"
          "  deform CHARACTER [--muscles M.json] --pose P.json -o out.obj|out.pc2 [--dominance D] [--threads N]\n"
          "          skin a pose (.obj) or a sequence of poses (.pc2, Blender's Mesh Cache modifier); pose\n"
          "          files: {\"bones\": {name: {\"rotation_quaternion\": [w,x,y,z]}}} or {\"frames\": [...]}\n"
-         "CHARACTER is a .glb/.gltf, or an .obj with a <name>.skeleton.json beside it.\n";
+         "CHARACTER is a .glb/.gltf, or an .obj with a <name>.skeleton.json beside it. ROLES.json: {\"bone\": \"role\"}.\n";
 }
 
 // ============================================================================
 // Commands
 // ============================================================================
 
-int cmdInfo(const Args& args) {
-  if (args.positional.size() != 1) throw InputError("info needs exactly one CHARACTER file");
+// The character named on the command line: every command works on a rigged, skinned character.
+Character loadArgCharacter(const Args& args, const std::string& command) {
+  if (args.positional.size() != 1) throw InputError(command + " needs exactly one CHARACTER file");
   const auto skel = args.options.count("--skeleton") ? args.options.at("--skeleton") : std::string();
   LoadOptions load;
-  load.requireWeights = true;  // every command works on a rigged, skinned character
-  const Character c = loadCharacter(args.positional[0], load, skel);
+  load.requireWeights = true;
+  if (args.options.count("--mesh")) load.meshName = args.options.at("--mesh");
+  return loadCharacter(args.positional[0], load, skel);
+}
+
+// A role file: {"bone": "role", ...} (or {"roles": {...}}); unknown roles throw, unknown bones are checked by
+// classifyBones.
+std::map<std::string, BoneRole> readRoles(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open the role file");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const std::exception& e) {
+    throw InputError(path + ": not valid JSON (" + std::string(e.what()) + ")");
+  }
+  if (j.is_object() && j.contains("roles")) j = j["roles"];
+  if (!j.is_object()) throw InputError(path + ": a role file is an object {\"bone\": \"role\"}");
+  std::map<std::string, BoneRole> roles;
+  for (const auto& [bone, role] : j.items()) {
+    if (!role.is_string()) throw InputError(path + ": the role of '" + bone + "' is not a string");
+    try {
+      roles[bone] = boneRoleFromName(role.get<std::string>());
+    } catch (const InputError& e) {
+      throw InputError(path + ": bone '" + bone + "': " + e.what());
+    }
+  }
+  return roles;
+}
+
+int cmdRoles(const Args& args) {
+  const Character c = loadArgCharacter(args, "roles");
+  const std::map<std::string, BoneRole> overrides =
+      args.options.count("--roles") ? readRoles(args.options.at("--roles")) : std::map<std::string, BoneRole>{};
+  const std::vector<BoneRole> roles = characterBoneRoles(c, overrides);
+  nlohmann::ordered_json out = nlohmann::ordered_json::object();
+  std::map<std::string, int> counts;
+  for (int i = 0; i < c.skeleton.numBones(); ++i) {
+    const Bone& b = c.skeleton.bones[i];
+    const char* role = boneRoleName(roles[i]);
+    ++counts[role];
+    out[b.name] = role;
+    std::printf("%-32s %-9s parent %s\n", b.name.c_str(), role, b.parent >= 0 ? c.skeleton.bones[b.parent].name.c_str() : "-");
+  }
+  std::printf("roles of %d bones:", c.skeleton.numBones());
+  for (const auto& [role, n] : counts) std::printf(" %s %d", role.c_str(), n);
+  std::printf("\n");
+  if (args.options.count("--output")) {
+    std::ofstream f(args.options.at("--output"));
+    f << out.dump(2) << "\n";
+    if (!f) throw InputError("cannot write " + args.options.at("--output"));
+  }
+  return 0;
+}
+
+int cmdInfo(const Args& args) {
+  const Character c = loadArgCharacter(args, "info");
   const TopologyReport topo = analyzeTopology(c.mesh);
   Vec3 lo, hi;
   boundingBox(c.mesh.vertices, lo, hi);
@@ -99,6 +162,11 @@ int cmdInfo(const Args& args) {
   std::printf("bounding box: min (%.4f, %.4f, %.4f) max (%.4f, %.4f, %.4f) m\n", lo.x(), lo.y(), lo.z(), hi.x(),
               hi.y(), hi.z());
   std::printf("volume: %.6f m^3\n", enclosedVolume(c.mesh.vertices, c.mesh.triangles));
+  if (c.pieces.size() > 1) {
+    std::printf("meshes: %zu", c.pieces.size());
+    for (const MeshPiece& p : c.pieces) std::printf(" %s (%d)", p.name.c_str(), p.vertexCount);
+    std::printf("\n");
+  }
   const bool all = std::find(args.flags.begin(), args.flags.end(), "--bones") != args.flags.end();
   std::printf("bone names:");
   const int shown = all ? c.skeleton.numBones() : std::min(c.skeleton.numBones(), 12);
@@ -143,8 +211,8 @@ double numberOption(const Args& args, const std::string& name, double fallback) 
 int cmdExtract(const Args& args) {
   if (args.positional.size() != 1) throw InputError("extract needs exactly one CHARACTER file");
   if (!args.options.count("--output")) throw InputError("extract needs -o muscles.json");
-  const auto skel = args.options.count("--skeleton") ? args.options.at("--skeleton") : std::string();
   ExtractionOptions options;
+  if (args.options.count("--roles")) options.roleOverrides = readRoles(args.options.at("--roles"));
   options.planes.spacing = numberOption(args, "--spacing", 0.0);
   if (options.planes.spacing < 0) throw InputError("--spacing must be >= 0 (0 = automatic)");
   options.minConfidence = numberOption(args, "--min-confidence", options.minConfidence);
@@ -155,18 +223,34 @@ int cmdExtract(const Args& args) {
   options.minEvidence = numberOption(args, "--min-evidence", options.minEvidence);
   if (!(options.minEvidence >= 0)) throw InputError("--min-evidence must be >= 0");
   options.buildSurfaces = std::find(args.flags.begin(), args.flags.end(), "--no-surfaces") == args.flags.end();
-  LoadOptions load;
-  load.requireWeights = true;
-  const Character c = loadCharacter(args.positional[0], load, skel);
+  const Character c = loadArgCharacter(args, "extract");
   const ExtractionResult r = extractMuscles(c, options);
+  // Left-out components, grouped by why, mesh and bone.
+  std::map<std::string, std::pair<int, int>> leftOut;  // description -> (components, vertices)
+  for (const ExcludedComponent& e : r.report.excluded) {
+    std::string piece;
+    for (size_t i = 0; i < c.sourceToWelded.size() && piece.empty(); ++i)
+      if (c.sourceToWelded[i] == e.firstVertex)
+        for (const MeshPiece& p : c.pieces)
+          if (static_cast<int>(i) >= p.firstVertex && static_cast<int>(i) < p.firstVertex + p.vertexCount) piece = p.name;
+    const std::string what = e.reason + (piece.empty() ? "" : " in mesh '" + piece + "'") +
+                             (e.bone.empty() ? "" : " bound to '" + e.bone + "'");
+    ++leftOut[what].first;
+    leftOut[what].second += e.vertices;
+  }
+  for (const auto& [what, n] : leftOut)
+    std::printf("left out of the analysis: %d %s skin component(s), %d vertices\n", n.first, what.c_str(), n.second);
+  if (!r.report.analysed) throw InputError("nothing could be analysed in " + c.name + ": " + r.report.diagnosis);
   writeMusclesJson(args.options.at("--output"), r.muscles);
+  if (r.muscles.empty()) std::printf("no muscles: %s\n", r.report.diagnosis.c_str());
   double seconds = 0;
   for (const StageTiming& t : r.report.timings) seconds += t.seconds;
   std::set<std::string> regions;
   for (const Muscle& m : r.muscles) regions.insert(m.region);
-  std::printf("extracted %d muscles in %zu regions from %s (%d planes, %d sections, %zu skipped, %d bumps, %.2f s) -> %s\n",
+  std::printf("extracted %d muscles in %zu regions from %s (%d planes, %d sections, %zu skipped, %d bumps, limb radius %.4g, "
+              "%.2f s) -> %s\n",
               r.report.muscles, regions.size(), c.name.c_str(), r.report.planes, r.report.sections,
-              r.report.skipped.size(), r.report.bumps, seconds, args.options.at("--output").c_str());
+              r.report.skipped.size(), r.report.bumps, r.report.limbRadius, seconds, args.options.at("--output").c_str());
   return 0;
 }
 
@@ -182,10 +266,7 @@ int cmdDeform(const Args& args) {
   const std::string out = args.options.at("--output");
   const bool pc2 = endsWith(out, ".pc2");
   if (!pc2 && !endsWith(out, ".obj")) throw InputError("deform: -o must end in .obj or .pc2, got '" + out + "'");
-  const auto skel = args.options.count("--skeleton") ? args.options.at("--skeleton") : std::string();
-  LoadOptions load;
-  load.requireWeights = true;
-  const Character c = loadCharacter(args.positional[0], load, skel);
+  const Character c = loadArgCharacter(args, "deform");
   const PoseSequence poses = readPoseJson(args.options.at("--pose"), c.skeleton);
   if (!pc2 && poses.frames.size() != 1)
     throw InputError("deform: the pose file has " + std::to_string(poses.frames.size()) +
@@ -251,14 +332,16 @@ int main(int argc, char** argv) {
   }
   const std::string command = argv[1];
   try {
-    if (command == "info") return cmdInfo(parse(argc, argv, 2, {"--skeleton"}));
+    if (command == "info") return cmdInfo(parse(argc, argv, 2, {"--skeleton", "--mesh"}));
+    if (command == "roles") return cmdRoles(parse(argc, argv, 2, {"--skeleton", "--mesh", "--roles", "--output"}));
     if (command == "generate") return cmdGenerate(parse(argc, argv, 2, {"--output", "--seed", "--muscle-scale"}));
     if (command == "extract")
       return cmdExtract(parse(argc, argv, 2,
                               {"--output", "--skeleton", "--spacing", "--min-confidence", "--min-sections", "--max-per-region",
-                               "--min-evidence"}));
+                               "--min-evidence", "--mesh", "--roles"}));
     if (command == "deform")
-      return cmdDeform(parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads"}));
+      return cmdDeform(
+          parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh"}));
     std::fprintf(stderr, "myoskin: error: unknown command '%s' (try myoskin --help)\n", command.c_str());
     return 2;
   } catch (const InputError& e) {

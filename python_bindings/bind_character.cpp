@@ -99,6 +99,14 @@ void bindCharacter(py::module_& m) {
                                                            c.sourceToWelded.data());
                              })
       .def_readonly("source_vertex_count", &Character::sourceVertexCount)
+      .def_property_readonly("pieces",
+                             [](const Character& c) {
+                               py::list out;
+                               for (const MeshPiece& p : c.pieces)
+                                 out.append(py::make_tuple(p.name, p.firstVertex, p.vertexCount));
+                               return out;
+                             },
+                             "[(name, first source vertex, vertex count)] of the meshes it was loaded from")
       .def_property_readonly("num_vertices", [](const Character& c) { return c.mesh.numVertices(); })
       .def_property_readonly("num_triangles", [](const Character& c) { return c.mesh.numTriangles(); })
       .def_property_readonly("num_bones", [](const Character& c) { return c.skeleton.numBones(); })
@@ -136,15 +144,18 @@ void bindCharacter(py::module_& m) {
 
   m.def(
       "load_character",
-      [](const std::string& path, double weldTolerance, bool requireWeights, const std::string& skeletonPath) {
+      [](const std::string& path, double weldTolerance, bool requireWeights, const std::string& skeletonPath,
+         const std::string& mesh) {
         LoadOptions o;
         o.weldTolerance = weldTolerance;
         o.requireWeights = requireWeights;
+        o.meshName = mesh;
         return loadCharacter(path, o, skeletonPath);
       },
-      py::arg("path"), py::arg("weld_tolerance") = 1e-6, py::arg("require_weights") = false,
-      py::arg("skeleton_path") = "", py::call_guard<py::gil_scoped_release>(),
-      "Load a .glb/.gltf, or an .obj with <stem>.skeleton.json. Raises ValueError on bad input.");
+      py::arg("path"), py::arg("weld_tolerance") = LoadOptions{}.weldTolerance, py::arg("require_weights") = false,
+      py::arg("skeleton_path") = "", py::arg("mesh") = "", py::call_guard<py::gil_scoped_release>(),
+      "Load a .glb/.gltf (every mesh its skin deforms, or only `mesh`), or an .obj with <stem>.skeleton.json. "
+      "weld_tolerance is a share of the skin's bounding-box diagonal. Raises ValueError on bad input.");
   m.def("character_from_arrays", &characterFromArrays, py::arg("name"), py::arg("vertices"), py::arg("triangles"),
         py::arg("bone_names"), py::arg("bone_parents"), py::arg("bone_heads"), py::arg("bone_tails"),
         py::arg("bone_rest"), py::arg("weight_joints"), py::arg("weight_values"),

@@ -1,4 +1,8 @@
 // Muscle extraction: extract_muscles(character, ...) -> (list[Muscle], report dict). GIL released.
+#include <cmath>
+#include <map>
+#include <string>
+
 #include "bindings.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
@@ -36,6 +40,20 @@ py::dict reportToDict(const ExtractionReport& r) {
   d["split"] = r.split;
   d["dropped_flat"] = r.droppedFlat;
   d["forced"] = r.forced;
+  d["limb_radius"] = r.limbRadius;
+  d["scale"] = r.scale;
+  d["analysed"] = r.analysed;
+  d["diagnosis"] = r.diagnosis;
+  py::list excluded;
+  for (const ExcludedComponent& c : r.excluded) {
+    py::dict e;
+    e["vertices"] = c.vertices;
+    e["bone"] = c.bone;
+    e["reason"] = c.reason;
+    e["first_vertex"] = c.firstVertex;
+    excluded.append(e);
+  }
+  d["excluded"] = excluded;
   py::list skipped;
   for (const SkippedSection& s : r.skipped) {
     py::dict e;
@@ -79,8 +97,12 @@ void bindExtraction(py::module_& m) {
       [](const Character& character, double spacing, const py::object& vertexMask, double minConfidence,
          int minSections, int maxPerRegion, const py::object& forcedRegions, bool buildSurfaces,
          double minRelative, double weakFraction, double minRelativeTrunk, bool mirrorLimbs, double faintRelative,
-         double minEvidence, double jointWrap, double continuousFraction, double continuousEvidence) {
+         double minEvidence, double jointWrap, double continuousFraction, double continuousEvidence,
+         const std::map<std::string, std::string>& boneRoles, double referenceLimbRadius) {
         ExtractionOptions o;
+        if (!std::isfinite(referenceLimbRadius)) throw InputError("reference_limb_radius must be finite");
+        o.referenceLimbRadius = referenceLimbRadius;
+        for (const auto& [bone, role] : boneRoles) o.roleOverrides[bone] = boneRoleFromName(role);
         if (spacing < 0) throw InputError("spacing must be >= 0 (0 = automatic)");
         if (minConfidence < 0 || minConfidence > 1) throw InputError("min_confidence must be in [0, 1]");
         if (minSections < 1) throw InputError("min_sections must be >= 1");
@@ -128,6 +150,8 @@ void bindExtraction(py::module_& m) {
       py::arg("joint_wrap") = EndOptions{}.jointWrapFraction,
       py::arg("continuous_fraction") = ExtractionOptions{}.continuousFraction,
       py::arg("continuous_evidence") = ExtractionOptions{}.continuousEvidence,
+      py::arg("bone_roles") = std::map<std::string, std::string>{},
+      py::arg("reference_limb_radius") = 0.0,
       "Extract muscles from a character's skin (Yang & Zhang 2006). spacing: metres between cutting planes "
       "(0 = automatic); vertex_mask: #V booleans, extract only there; forced_regions: list of #V masks, one "
       "muscle forced per region; min_confidence: drop weaker muscles; max_per_region: keep the most confident "
@@ -138,8 +162,27 @@ void bindExtraction(py::module_& m) {
       "they reach this share of its peak significance (0 = off); min_evidence: a muscle's summed bump significance, in "
       "sections of the default spacing, must reach this (0 = off); continuous_fraction: a limb muscle that stands out in every plane "
       "between its ends with at least continuous_evidence needs only this share of min_relative (1 = off); joint_wrap: a muscle crossing a joint wraps round it "
-      "on a sphere of this times its mean semi-axis b (0 = straight lines). Returns (muscles, report) where report has per-stage counts, skipped sections "
-      "with reasons and timings per stage (seconds).");
+      "on a sphere of this times its mean semi-axis b (0 = straight lines); bone_roles: {bone name: role} overriding the "
+      "detected roles (ignore, limb, shoulder, neck, spine, pelvis); reference_limb_radius: the limb radius every default length "
+      "holds for (0 = the built-in reference, < 0 = the character's own units). Returns (muscles, report) where report has per-stage "
+      "counts, skipped sections with reasons, timings per stage (seconds), limb_radius and scale (the body scale), "
+      "excluded (skin components left out: small or rigidly bound), analysed (any section looked at) and diagnosis "
+      "(why nothing was found, else empty).");
+
+  m.def(
+      "bone_roles",
+      [](const Character& character, const std::map<std::string, std::string>& overrides) {
+        std::map<std::string, BoneRole> o;
+        for (const auto& [bone, role] : overrides) o[bone] = boneRoleFromName(role);
+        const std::vector<BoneRole> roles = characterBoneRoles(character, o);
+        py::dict d;
+        for (int i = 0; i < character.skeleton.numBones(); ++i)
+          d[py::str(character.skeleton.bones[i].name)] = boneRoleName(roles[i]);
+        return d;
+      },
+      py::arg("character"), py::arg("overrides") = std::map<std::string, std::string>{},
+      "The role extraction gives each bone ({name: role}), from the bone tree and the skin, names only as hints; "
+      "`overrides` ({name: role}) win. Raises ValueError on an unknown bone or role.");
 
   m.def(
       "measure_extraction",

@@ -108,3 +108,69 @@ def test_usage_errors():
     r = run_cli("frobnicate")
     assert r.returncode == 2 and "unknown command" in r.stderr
     assert run_cli("--help").returncode == 0
+
+
+# ============================================================================
+# Any character: several meshes, bone roles, saying why
+# ============================================================================
+
+SOLDIER = "characters/quaternius_woman_soldier/woman_soldier.glb"
+
+
+def test_info_and_extract_take_every_mesh_of_the_character(tmp_path):
+    r = run_cli("info", shared(SOLDIER))
+    assert r.returncode == 0, r.stderr
+    assert "15836 as stored" in r.stdout  # all four meshes
+    assert re.search(r"^meshes: 4 Soldier_Body \(5444\)", r.stdout, re.M), r.stdout
+    out = tmp_path / "m.json"
+    r = run_cli("extract", shared(SOLDIER), "-o", str(out), "--no-surfaces")
+    assert r.returncode == 0, r.stderr
+    assert re.search(r"left out of the analysis: \d+ rigid in mesh 'Soldier_Head' bound to 'Head'", r.stdout), r.stdout
+    regions = {m["region"] for m in json.load(open(out))["muscles"]}
+    assert {"UpperLeg.L", "UpperLeg.R"} <= regions, regions
+    legs = run_cli("info", shared(SOLDIER), "--mesh", "Soldier_Legs")
+    assert legs.returncode == 0 and "2600 as stored" in legs.stdout, legs.stdout + legs.stderr
+    r = run_cli("info", shared(SOLDIER), "--mesh", "Cape")
+    assert r.returncode == 1 and "no mesh called 'Cape'" in r.stderr and "Soldier_Feet" in r.stderr
+
+
+def test_roles_prints_and_writes_the_role_map_that_extract_takes(tmp_path):
+    roles_file = tmp_path / "roles.json"
+    r = run_cli("roles", shared(MUSCULAR), "-o", str(roles_file))
+    assert r.returncode == 0, r.stderr
+    assert re.search(r"^upperarm02\.L\s+limb\s+parent upperarm01\.L$", r.stdout, re.M), r.stdout
+    roles = json.load(open(roles_file))
+    assert len(roles) == 163 and roles["neck01"] == "neck" and roles["spine03"] == "spine"
+    # Overrides: the arms off, and the extraction then finds nothing on them.
+    for bone, role in list(roles.items()):
+        if bone.startswith(("upperarm", "lowerarm")):
+            roles[bone] = "ignore"
+    json.dump(roles, open(roles_file, "w"))
+    out = tmp_path / "m.json"
+    r = run_cli("extract", shared(MUSCULAR), "-o", str(out), "--no-surfaces", "--roles", str(roles_file))
+    assert r.returncode == 0, r.stderr
+    muscles = json.load(open(out))["muscles"]
+    assert muscles and not [m for m in muscles if m["region"].startswith(("upperarm", "lowerarm"))]
+    json.dump({"upperarm01.L": "wing"}, open(roles_file, "w"))
+    r = run_cli("extract", shared(MUSCULAR), "-o", str(out), "--roles", str(roles_file))
+    assert r.returncode == 1 and "unknown bone role 'wing'" in r.stderr, r.stderr
+    json.dump({"tail01": "limb"}, open(roles_file, "w"))
+    r = run_cli("roles", shared(MUSCULAR), "--roles", str(roles_file))
+    assert r.returncode == 1 and "names no bone: 'tail01'" in r.stderr, r.stderr
+
+
+def test_extract_says_why_and_fails_when_nothing_could_be_analysed(tmp_path):
+    r = run_cli("generate", "arm", "-o", str(tmp_path), "--seed", "1")
+    assert r.returncode == 0, r.stderr
+    arm = str(tmp_path / "arm.obj")
+    roles = tmp_path / "roles.json"
+    json.dump({b: "ignore" for b in ("clavicle", "upper_arm", "forearm", "hand")}, open(roles, "w"))
+    out = tmp_path / "m.json"
+    r = run_cli("extract", arm, "-o", str(out), "--roles", str(roles))
+    assert r.returncode == 1, r.stdout
+    assert "nothing could be analysed" in r.stderr and "no limb chain recognised" in r.stderr, r.stderr
+    assert not out.exists()
+    # Sections analysed but nothing stands out: exit 0, and the reason printed.
+    r = run_cli("extract", arm, "-o", str(out), "--min-evidence", "1000", "--no-surfaces")
+    assert r.returncode == 0, r.stderr
+    assert "no muscles: " in r.stdout and "none kept" in r.stdout, r.stdout

@@ -157,3 +157,34 @@ def test_continuous_floor_keeps_the_quadriceps(core):
     for bad in (dict(continuous_fraction=0.0), dict(continuous_fraction=1.5), dict(continuous_evidence=-1.0)):
         with pytest.raises(ValueError, match="continuous"):
             core.extract_muscles(character, build_surfaces=False, **bad)
+
+
+def test_bone_roles_and_the_report_say_what_was_analysed(core, arm):
+    arm = arm[0]  # (character, truth)
+    roles = core.bone_roles(arm)
+    assert roles["upper_arm"] == "limb" and roles["forearm"] == "limb" and roles["hand"] == "ignore"
+    muscles, report = core.extract_muscles(arm, build_surfaces=False)
+    assert len(muscles) >= 5 and report["diagnosis"] == "" and report["analysed"]
+    assert 0.03 < report["limb_radius"] < 0.06 and report["scale"] == 1.0 and report["excluded"] == []
+    # Overrides reach the core; with every bone ignored the report says why.
+    off = {name: "ignore" for name in roles}
+    assert set(core.bone_roles(arm, off).values()) == {"ignore"}
+    muscles, report = core.extract_muscles(arm, bone_roles=off, build_surfaces=False)
+    assert muscles == [] and not report["analysed"]
+    assert "no limb chain recognised" in report["diagnosis"]
+    with pytest.raises(ValueError, match="unknown bone role 'wing'"):
+        core.extract_muscles(arm, bone_roles={"forearm": "wing"})
+    with pytest.raises(ValueError, match="names no bone"):
+        core.bone_roles(arm, {"tail": "limb"})
+
+
+def test_several_meshes_load_as_one_character_or_one_by_name(core):
+    path = shared("characters/quaternius_woman_soldier/woman_soldier.glb")
+    whole = core.load_character(path, require_weights=True)
+    assert [p[0] for p in whole.pieces] == ["Soldier_Body", "Soldier_Feet", "Soldier_Head", "Soldier_Legs"]
+    assert sum(p[2] for p in whole.pieces) == whole.source_vertex_count == 15836
+    feet = core.load_character(path, require_weights=True, mesh="Soldier_Feet")
+    assert feet.source_vertex_count == 2096 and [p[0] for p in feet.pieces] == ["Soldier_Feet"]
+    muscles, report = core.extract_muscles(whole, build_surfaces=False)
+    assert report["excluded"] and {e["reason"] for e in report["excluded"]} <= {"small", "rigid"}
+    assert all(e["bone"] == "Head" for e in report["excluded"])

@@ -9,6 +9,13 @@
 
 namespace myoskin {
 
+// One mesh object of a character made of several (body, head, feet...), in source-vertex numbering.
+struct MeshPiece {
+  std::string name;
+  int firstVertex = 0;  // index of its first vertex as stored (sourceToWelded maps it to the welded mesh)
+  int vertexCount = 0;
+};
+
 struct Character {
   std::string name;
   Mesh mesh;  // welded skin, rest pose, scene space (metres)
@@ -17,6 +24,7 @@ struct Character {
   // For each vertex as stored in the file, its index in `mesh` (identity when nothing was welded).
   std::vector<int> sourceToWelded;
   int sourceVertexCount = 0;
+  std::vector<MeshPiece> pieces;  // the meshes it was loaded from (empty: one)
 
   bool hasWeights() const { return weights.numVertices() > 0; }
 };

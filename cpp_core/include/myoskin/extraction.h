@@ -151,6 +151,14 @@ struct ExtractionOptions {
                                                // Fourier base of this order (BumpOptions::baseHarmonics): a trunk's
                                                // bean or rounded-rectangle outline is not an oval, and against a conic
                                                // its whole flanks stood out as half-trunk "muscles"; 0 = conic base
+  double referenceLimbRadius = 0.0;            // body scale: the defaults' lengths (every one but planes.spacing, which is
+                                               // in the character's own units, and the stages' inner tolerances) hold for
+                                               // a character in metres. Its units are found from its limb radius
+                                               // (bodyLimbRadius): the power of ten that brings that nearest to this
+                                               // radius; the character is scaled by it about the origin for the analysis
+                                               // and the muscles scaled back, so the same character in mm, cm, m or
+                                               // exported x100 / x0.01 gives the same muscles. 0 = kReferenceLimbRadius;
+                                               // < 0 = analyse in the file's own units
   double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones are kept)
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
 };
@@ -167,7 +175,20 @@ struct StageTiming {
   double seconds = 0.0;
 };
 
+struct ExcludedComponent {
+  int vertices = 0;                   // welded vertices of the component
+  std::string bone;                   // the one bone it is bound to ("rigid"), else empty
+  std::string reason;                 // "small" or "rigid" (bodySurfaceMask)
+  int firstVertex = -1;               // lowest vertex index in it (to find it again)
+};
+
 struct ExtractionReport {
+  double limbRadius = 0.0;            // the body's limb radius in the character's units (bodyLimbRadius)
+  double scale = 1.0;                 // factor the character was scaled by for the analysis (a power of ten: its units)
+  std::vector<ExcludedComponent> excluded;  // skin components left out of the analysis (eyes, teeth, props)
+  std::string diagnosis;              // when no muscle was found: why (no limb chain, every section skipped and
+                                      // why, or no significant relief); empty otherwise
+  bool analysed = false;              // at least one section was analysed (false: nothing could be looked at)
   int bones = 0, activeBones = 0;     // bones, bones with a role other than Ignore
   int planes = 0;
   int sections = 0;                   // profiles that gave a clean loop
@@ -193,6 +214,27 @@ struct ExtractionResult {
 
 // Throws InputError for an invalid character or a mask of the wrong size.
 ExtractionResult extractMuscles(const Character& character, const ExtractionOptions& options = {});
+
+// ============================================================================
+// Body scale and the parts of the skin that are analysed
+// ============================================================================
+
+// The limb radius of a character in metres that the units detection aims at (makehuman_muscular_male's, on which
+// the defaults were measured; the neutral body's is 0.049, the synthetic arm's 0.041-0.044, the low-poly male's 0.060,
+// the soldier's 0.071): a limb radius from 1.75 cm to 17.5 cm is taken as metres.
+constexpr double kReferenceLimbRadius = 0.0554;
+
+// The body's limb radius: the median distance of the skin on limb bones (roles[b] == Limb, by each vertex's
+// dominant bone) from its bone segment; without limb skin, of all weighted skin from its dominant bone; without
+// weights, 1/40 of the skin's largest extent. Scales with the character; independent of units and placement.
+double bodyLimbRadius(const Character& character, const std::vector<BoneRole>& roles);
+
+// Skin components (connected over triangles) that are not body surface: small ones, whose bounding-box diagonal
+// is under `smallShare` of the largest component's (eyes, teeth, buttons), and rigid ones, whose every vertex is
+// bound with weight >= 0.99 to one and the same bone (helmets, armour plates, hair, props). The largest component
+// is always kept. Returns per vertex 1 = analysed, 0 = left out; `excluded` describes each left-out component.
+std::vector<char> bodySurfaceMask(const Character& character, std::vector<ExcludedComponent>& excluded,
+                                  double smallShare = 0.1);
 
 // ============================================================================
 // Stages, exposed for tests and tools

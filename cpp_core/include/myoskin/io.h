@@ -13,13 +13,16 @@ namespace myoskin {
 // ============================================================================
 
 struct LoadOptions {
-  double weldTolerance = 1e-6;  // metres; vertices closer than this are merged (UV seams)
+  double weldTolerance = 1e-6;  // share of the skin's bounding-box diagonal: vertices closer than this are merged
+                                // (UV seams, pieces that meet at open boundaries)
   bool requireWeights = false;  // throw when the mesh has no skin weights
+  std::string meshName;         // glTF: only the mesh node (or mesh) of this name; empty = the whole character
 };
 
-// glTF 2.0 (.glb/.gltf): the first skinned mesh (or first mesh), its skin's joints as bones, JOINTS_0/WEIGHTS_0.
-// Positions are placed in the scene by the rest skinning transform (node transforms and inverse bind
-// matrices applied), welded by position.
+// glTF 2.0 (.glb/.gltf): the character, i.e. every mesh node deformed by the first skin a mesh uses (several
+// pieces: body, head, feet...; one Character::pieces entry each), or the mesh named by options.meshName; the
+// skin's joints as bones, JOINTS_0/WEIGHTS_0. Positions are placed in the scene by the rest skinning transform
+// (node transforms and inverse bind matrices applied), welded by position.
 Character loadGltf(const std::string& path, const LoadOptions& options = {});
 
 // Wavefront OBJ (triangles or polygons, fan-triangulated) plus a skeleton JSON:

@@ -41,6 +41,11 @@ Mesh weldByPosition(const Mesh& mesh, double tolerance, std::vector<int>& weldMa
 // Axis-aligned bounds; min and max are 3-vectors. Mesh must be non-empty.
 void boundingBox(const Points& points, Vec3& min, Vec3& max);
 
+// The points' largest extent along their principal axes (the range of their projections on each eigenvector of
+// their covariance, the largest of the three): a body's height or span, independent of how it is rotated or placed.
+// Points must be non-empty.
+double principalExtent(const Points& points);
+
 // Signed enclosed volume (divergence theorem); positive for a closed outward-oriented mesh.
 double enclosedVolume(const Points& vertices, const Triangles& triangles);
 

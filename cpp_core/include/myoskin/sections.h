@@ -22,9 +22,18 @@ enum class BoneRole {
 const char* boneRoleName(BoneRole role);
 BoneRole boneRoleFromName(const std::string& name);  // throws InputError on an unknown name
 
-// Roles from chain topology plus name heuristics (Rigify, MakeHuman, Mixamo); `overrides` (bone name ->
-// role) wins. Returns one role per bone.
+// Roles from the shape of the bone tree (mirrored limb pairs, each limb's girdle, long segments and extremity, the
+// trunk between the limbs' attachments, the neck above), with names as hints where they say something (Rigify,
+// MakeHuman, Mixamo words); `overrides` (bone name -> role) win; non-deform bones are ignored. One role per bone.
 std::vector<BoneRole> classifyBones(const Skeleton& skeleton, const std::map<std::string, BoneRole>& overrides = {});
+
+// The skeleton with every bone that carries no skin weight marked non-deform (IK targets, poles, helpers); the
+// character's own when it has no weights.
+Skeleton weightedSkeleton(const Character& character);
+
+// classifyBones on weightedSkeleton(character): the roles extraction uses.
+std::vector<BoneRole> characterBoneRoles(const Character& character,
+                                         const std::map<std::string, BoneRole>& overrides = {});
 
 // One cutting plane. The plane's frame: origin on the bone, normal n, in-plane axes xAxis, yAxis
 // (right-handed: xAxis x yAxis = normal). 2D coordinates of a point p are ((p-origin).xAxis, (p-origin).yAxis).
@@ -50,7 +59,7 @@ struct CuttingPlane {
 };
 
 struct PlaneOptions {
-  double spacing = 0.0;  // metres between planes; 0 = derived from the mesh size (1/80 of its largest extent)
+  double spacing = 0.0;  // metres between planes; 0 = derived from the mesh size (1/80 of its largest extent along its principal axes, principalExtent)
   double endMargin = 0.12;  // fraction of a bone's length left out at each end (joints give no clean loops)
   double bendAngle = 0.26;  // radians: a joint bending more than this inside a chain gets the end margins
   double shoulderStart = 0.35;  // shoulder planes start this fraction along the clavicle chain

@@ -1,6 +1,8 @@
 // Mesh validation, topology statistics, welding, bounds and volume.
 #include "myoskin/mesh.h"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -147,6 +149,19 @@ Mesh weldByPosition(const Mesh& mesh, double tolerance, std::vector<int>& weldMa
 // ============================================================================
 // Measures
 // ============================================================================
+
+double principalExtent(const Points& points) {
+  if (points.rows() == 0) throw InputError("principalExtent: no points");
+  const Vec3 mean = points.colwise().mean().transpose();
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const Vec3 d = points.row(i).transpose() - mean;
+    cov += d * d.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  const Points projected = (points.rowwise() - mean.transpose()) * eig.eigenvectors();
+  return (projected.colwise().maxCoeff() - projected.colwise().minCoeff()).maxCoeff();
+}
 
 void boundingBox(const Points& points, Vec3& min, Vec3& max) {
   min = points.colwise().minCoeff().transpose();

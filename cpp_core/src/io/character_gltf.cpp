@@ -410,18 +410,58 @@ void addPrimitive(const tg::Model& model, const tg::Primitive& prim, bool skinne
 // Public API
 // ============================================================================
 
-// First skinned mesh node (else first mesh node), placed at rest in the scene, with its skin as skeleton.
+// Every mesh node skinned by the first skin used (or the one named by options.meshName, else the first mesh
+// node), placed at rest in the scene, with that skin as skeleton; one piece per node.
 Character loadGltf(const std::string& path, const LoadOptions& options) {
   const tg::Model model = readModel(path);
-  int meshNode = -1;
-  for (int i = 0; i < static_cast<int>(model.nodes.size()) && meshNode < 0; ++i)
-    if (model.nodes[i].mesh >= 0 && model.nodes[i].skin >= 0) meshNode = i;
-  for (int i = 0; i < static_cast<int>(model.nodes.size()) && meshNode < 0; ++i)
-    if (model.nodes[i].mesh >= 0) meshNode = i;
-  if (meshNode < 0) throw InputError(path + ": contains no mesh");
+  const int numNodes = static_cast<int>(model.nodes.size());
+  auto nodeName = [&](int i) {
+    const tg::Node& n = model.nodes[i];
+    if (!n.name.empty()) return n.name;
+    if (n.mesh >= 0 && n.mesh < static_cast<int>(model.meshes.size()) && !model.meshes[n.mesh].name.empty())
+      return model.meshes[n.mesh].name;
+    return "mesh_node_" + std::to_string(i);
+  };
+  std::vector<int> meshNodes;
+  if (!options.meshName.empty()) {
+    std::string names;
+    for (int i = 0; i < numNodes; ++i) {
+      if (model.nodes[i].mesh < 0) continue;
+      const bool meshMatches = model.nodes[i].mesh < static_cast<int>(model.meshes.size()) &&
+                               model.meshes[model.nodes[i].mesh].name == options.meshName;
+      if (model.nodes[i].name == options.meshName || meshMatches) {
+        meshNodes.push_back(i);
+        break;
+      }
+      names += (names.empty() ? "" : ", ") + nodeName(i);
+    }
+    if (meshNodes.empty())
+      throw InputError(path + ": no mesh called '" + options.meshName + "' (meshes: " + (names.empty() ? "none" : names) + ")");
+  } else {
+    // The first skin a mesh uses; other skins over the same joints (one per mesh, as exporters write them) count too.
+    int skinIndex = -1;
+    for (int i = 0; i < numNodes && skinIndex < 0; ++i)
+      if (model.nodes[i].mesh >= 0 && model.nodes[i].skin >= 0 && model.nodes[i].skin < static_cast<int>(model.skins.size()))
+        skinIndex = model.nodes[i].skin;
+    auto sameJoints = [&](int s) {
+      if (s < 0 || s >= static_cast<int>(model.skins.size())) return false;
+      std::vector<int> a = model.skins[s].joints, b = model.skins[skinIndex].joints;
+      std::sort(a.begin(), a.end()), std::sort(b.begin(), b.end());
+      return a == b;
+    };
+    for (int i = 0; i < numNodes; ++i)
+      if (model.nodes[i].mesh >= 0 && (skinIndex < 0 ? meshNodes.empty() : sameJoints(model.nodes[i].skin)))
+        meshNodes.push_back(i);
+  }
+  if (meshNodes.empty()) throw InputError(path + ": contains no mesh");
+  const int meshNode = meshNodes[0];
+  for (int i : meshNodes) {
+    if (model.nodes[i].mesh >= static_cast<int>(model.meshes.size()))
+      throw InputError(path + ": a node refers to a missing mesh");
+    if (model.nodes[i].skin >= static_cast<int>(model.skins.size()))
+      throw InputError(path + ": a node refers to a missing skin");
+  }
   const tg::Node& node = model.nodes[meshNode];
-  if (node.mesh >= static_cast<int>(model.meshes.size())) throw InputError(path + ": a node refers to a missing mesh");
-  if (node.skin >= static_cast<int>(model.skins.size())) throw InputError(path + ": a node refers to a missing skin");
   const bool skinned = node.skin >= 0;
   if (!skinned && options.requireWeights) throw InputError(path + ": the mesh has no skin (no skin weights)");
 
@@ -435,33 +475,50 @@ Character loadGltf(const std::string& path, const LoadOptions& options) {
   Skeleton skeleton = buildSkeleton(model, skin, world, parentOf, path, boneOfJoint);
   const int nj = static_cast<int>(skin.joints.size());
 
-  // Joint matrices at rest: World(joint_j) * inverseBindMatrix_j.
-  std::vector<Mat4> jointMatrices(nj, Mat4::Identity());
-  if (skinned) {
+  // Joint matrices at rest of one skin, in its own joint order: World(joint_j) * inverseBindMatrix_j.
+  std::unordered_map<int, int> jointOfNode;
+  for (int j = 0; j < nj; ++j) jointOfNode[skin.joints[j]] = j;
+  auto restJointMatrices = [&](const tg::Skin& s) {
+    std::vector<Mat4> matrices(s.joints.size(), Mat4::Identity());
     std::vector<double> ibm;
-    if (skin.inverseBindMatrices >= 0) {
+    if (s.inverseBindMatrices >= 0) {
       const tg::Accessor* info = nullptr;
-      ibm = readAccessor(model, skin.inverseBindMatrices, TINYGLTF_TYPE_MAT4, path + ": inverse bind matrices", &info);
-      if (info->count < static_cast<size_t>(nj)) throw InputError(path + ": fewer inverse bind matrices than joints");
+      ibm = readAccessor(model, s.inverseBindMatrices, TINYGLTF_TYPE_MAT4, path + ": inverse bind matrices", &info);
+      if (info->count < s.joints.size()) throw InputError(path + ": fewer inverse bind matrices than joints");
     }
-    for (int j = 0; j < nj; ++j) {
+    for (size_t j = 0; j < s.joints.size(); ++j) {
       Mat4 inv = Mat4::Identity();
       if (!ibm.empty())
         for (int c = 0; c < 4; ++c)
           for (int r = 0; r < 4; ++r) inv(r, c) = ibm[j * 16 + c * 4 + r];
-      jointMatrices[j] = world[skin.joints[j]] * inv;
+      matrices[j] = world[s.joints[j]] * inv;
     }
-  }
+    return matrices;
+  };
 
-  // Geometry: all TRIANGLES primitives of the mesh.
-  const tg::Mesh& mesh = model.meshes[node.mesh];
+  // Geometry: all TRIANGLES primitives of every piece.
   Geometry g;
-  std::map<std::vector<int>, int> reuse;
-  for (size_t k = 0; k < mesh.primitives.size(); ++k) {
-    const tg::Primitive& prim = mesh.primitives[k];
-    if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) continue;  // -1: mode absent = TRIANGLES
-    addPrimitive(model, prim, skinned, nj, jointMatrices, world[meshNode],
-                 path + ": mesh '" + mesh.name + "' primitive " + std::to_string(k), reuse, g);
+  std::vector<MeshPiece> pieces;
+  for (int n : meshNodes) {
+    const tg::Mesh& mesh = model.meshes[model.nodes[n].mesh];
+    const int first = static_cast<int>(g.vertices.size());
+    std::map<std::vector<int>, int> reuse;
+    const int nodeSkin = model.nodes[n].skin;
+    const bool pieceSkinned = skinned && nodeSkin >= 0;
+    const std::vector<Mat4> jointMatrices =
+        pieceSkinned ? restJointMatrices(model.skins[nodeSkin]) : std::vector<Mat4>(nj, Mat4::Identity());
+    // Influences are read in this skin's joint order and renumbered into the skeleton skin's.
+    const size_t before = g.influences.size();
+    for (size_t k = 0; k < mesh.primitives.size(); ++k) {
+      const tg::Primitive& prim = mesh.primitives[k];
+      if (prim.mode != TINYGLTF_MODE_TRIANGLES && prim.mode != -1) continue;  // -1: mode absent = TRIANGLES
+      addPrimitive(model, prim, pieceSkinned, static_cast<int>(jointMatrices.size()), jointMatrices, world[n],
+                   path + ": mesh '" + mesh.name + "' primitive " + std::to_string(k), reuse, g);
+    }
+    if (pieceSkinned)
+      for (size_t v = before; v < g.influences.size(); ++v)
+        for (auto& entry : g.influences[v]) entry.first = jointOfNode.at(model.skins[nodeSkin].joints[entry.first]);
+    pieces.push_back({nodeName(n), first, static_cast<int>(g.vertices.size()) - first});
   }
   if (g.triangles.empty()) throw InputError(path + ": the mesh has no triangles");
   if (skinned && options.requireWeights && !g.hasWeights)
@@ -481,7 +538,9 @@ Character loadGltf(const std::string& path, const LoadOptions& options) {
       for (auto& entry : inf) entry.first = boneOfJoint[entry.first];
     weights = io_detail::packInfluences(g.influences, 4, path);
   }
-  return io_detail::finishCharacter(path, source, std::move(skeleton), weights, options);
+  Character c = io_detail::finishCharacter(path, source, std::move(skeleton), weights, options);
+  c.pieces = std::move(pieces);
+  return c;
 }
 
 }  // namespace myoskin

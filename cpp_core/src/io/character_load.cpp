@@ -116,7 +116,9 @@ Character finishCharacter(const std::string& path, const Mesh& source, Skeleton 
 
   Character c;
   c.name = fileStem(path);
-  c.mesh = weldByPosition(source, options.weldTolerance, c.sourceToWelded);
+  Vec3 lo, hi;
+  boundingBox(source.vertices, lo, hi);
+  c.mesh = weldByPosition(source, options.weldTolerance * (hi - lo).norm(), c.sourceToWelded);
   c.sourceVertexCount = source.numVertices();
   c.skeleton = std::move(skeleton);
   if (hasWeights) {

@@ -86,7 +86,39 @@ bool continuousChain(const MuscleChain& c, const std::vector<SectionBumps>& sect
   return !orders.empty();
 }
 
+// Why nothing was found, from the report of a run that returned no muscle.
+std::string diagnose(const ExtractionReport& rep) {
+  if (rep.activeBones == 0 || rep.planes == 0)
+    return "no limb chain recognised: none of the " + std::to_string(rep.bones) +
+           " bones has a limb, spine or neck role, by name or by the shape of the bone tree (name them with a role "
+           "map: myoskin roles / extract --roles, Python bone_roles)";
+  if (rep.sections == 0) {
+    std::map<std::string, int> reasons;
+    for (const SkippedSection& s : rep.skipped) ++reasons[s.reason];
+    std::vector<std::pair<int, std::string>> byCount;
+    for (const auto& [reason, count] : reasons) byCount.emplace_back(-count, reason);
+    std::sort(byCount.begin(), byCount.end());
+    std::string text = "every one of the " + std::to_string(rep.planes) + " sections was skipped (";
+    for (size_t i = 0; i < byCount.size() && i < 3; ++i)
+      text += (i ? "; " : "") + std::to_string(-byCount[i].first) + "x " + byCount[i].second;
+    return text + "): the skin around the bones gives no closed loop (open or non-manifold skin?)";
+  }
+  if (rep.bumps == 0)
+    return "no significant relief: " + std::to_string(rep.sections) +
+           " sections analysed and none stands out of its smooth base by the threshold (smooth skin?)";
+  return std::to_string(rep.chains) + " chains of bumps in " + std::to_string(rep.sections) +
+         " sections, none kept as a muscle (" + std::to_string(rep.droppedShort) + " too short, " +
+         std::to_string(rep.droppedFlat) + " too flat, " + std::to_string(rep.droppedConfidence) +
+         " low confidence, " + std::to_string(rep.droppedOverlap) + " overlapped): the relief is too faint or too short";
+}
+
+ExtractionResult extractAtBodyScale(const Character& character, const ExtractionOptions& options);
+
 }  // namespace
+
+// ============================================================================
+// One-shot pipeline: body surface and scale, then the stages
+// ============================================================================
 
 ExtractionResult extractMuscles(const Character& character, const ExtractionOptions& options) {
   validateCharacter(character);
@@ -98,7 +130,90 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     if (static_cast<int>(options.forcedRegions[r].size()) != nv)
       throw InputError("forced region " + std::to_string(r) + " has " + std::to_string(options.forcedRegions[r].size()) +
                        " entries, the skin has " + std::to_string(nv) + " vertices");
+  if (!std::isfinite(options.referenceLimbRadius)) throw InputError("referenceLimbRadius must be finite");
 
+  // The body surface: small and rigidly bound components left out, vertices renumbered.
+  std::vector<ExcludedComponent> excluded;
+  const std::vector<char> keep = bodySurfaceMask(character, excluded);
+  std::vector<int> newIndex(nv, -1);
+  Character body;
+  body.name = character.name;
+  body.skeleton = weightedSkeleton(character);
+  std::vector<char> used(nv, 0);
+  for (int f = 0; f < character.mesh.numTriangles(); ++f)
+    for (int c = 0; c < 3; ++c) used[character.mesh.triangles(f, c)] = 1;
+  int count = 0;
+  for (int v = 0; v < nv; ++v)
+    if (used[v] && keep[v]) newIndex[v] = count++;
+  body.mesh.vertices.resize(count, 3);
+  if (character.hasWeights()) {
+    body.weights.joints.resize(count, character.weights.influences());
+    body.weights.weights.resize(count, character.weights.influences());
+  }
+  for (int v = 0; v < nv; ++v) {
+    if (newIndex[v] < 0) continue;
+    body.mesh.vertices.row(newIndex[v]) = character.mesh.vertices.row(v);
+    if (character.hasWeights()) {
+      body.weights.joints.row(newIndex[v]) = character.weights.joints.row(v);
+      body.weights.weights.row(newIndex[v]) = character.weights.weights.row(v);
+    }
+  }
+  std::vector<Eigen::Vector3i> tris;
+  for (int f = 0; f < character.mesh.numTriangles(); ++f) {
+    const Eigen::Vector3i t = character.mesh.triangles.row(f).transpose();
+    if (newIndex[t[0]] >= 0 && newIndex[t[1]] >= 0 && newIndex[t[2]] >= 0)
+      tris.emplace_back(newIndex[t[0]], newIndex[t[1]], newIndex[t[2]]);
+  }
+  body.mesh.triangles.resize(static_cast<Eigen::Index>(tris.size()), 3);
+  for (size_t f = 0; f < tris.size(); ++f) body.mesh.triangles.row(static_cast<Eigen::Index>(f)) = tris[f].transpose();
+  ExtractionOptions o = options;
+  auto remap = [&](const std::vector<char>& mask) {
+    std::vector<char> out(count, 0);
+    for (int v = 0; v < nv; ++v)
+      if (newIndex[v] >= 0) out[newIndex[v]] = mask[v];
+    return out;
+  };
+  if (!o.vertexMask.empty()) o.vertexMask = remap(options.vertexMask);
+  for (auto& region : o.forcedRegions) region = remap(region);
+
+  // The body scale: the character's units are found from its limb radius (the power of ten that brings it nearest
+  // the reference) and it is scaled about the origin into them, so mm, cm, m and x100 exports give the same muscles.
+  const std::vector<BoneRole> roles = classifyBones(body.skeleton, options.roleOverrides);
+  const double limbRadius = bodyLimbRadius(body, roles);
+  const double reference = options.referenceLimbRadius == 0 ? kReferenceLimbRadius : options.referenceLimbRadius;
+  const double factor = reference > 0 && limbRadius > 0 ? std::pow(10.0, std::round(std::log10(reference / limbRadius))) : 1.0;
+  auto toBody = [&](const Vec3& p) { return Vec3(p * factor); };
+  auto fromBody = [&](const Vec3& p) { return Vec3(p / factor); };
+  for (int v = 0; v < count; ++v) body.mesh.vertices.row(v) = toBody(body.mesh.vertices.row(v).transpose()).transpose();
+  for (Bone& b : body.skeleton.bones) {
+    b.head = toBody(b.head), b.tail = toBody(b.tail);
+    b.rest.block<3, 1>(0, 3) = toBody(b.rest.block<3, 1>(0, 3));
+  }
+  o.planes.spacing *= factor;
+
+  ExtractionResult result = extractAtBodyScale(body, o);
+  for (Muscle& m : result.muscles) {
+    m.origin.position = fromBody(m.origin.position);
+    m.insertion.position = fromBody(m.insertion.position);
+    for (Vec3& p : m.rootCurve) p = fromBody(p);
+    for (MuscleSection& s : m.sections) s.center = fromBody(s.center), s.a /= factor, s.b /= factor;
+    m.wrap.radius /= factor;
+    for (Eigen::Index v = 0; v < m.surface.vertices.rows(); ++v)
+      m.surface.vertices.row(v) = fromBody(m.surface.vertices.row(v).transpose()).transpose();
+  }
+  ExtractionReport& rep = result.report;
+  rep.limbRadius = limbRadius;
+  rep.scale = factor;
+  rep.excluded = std::move(excluded);
+  rep.analysed = rep.sections > 0;
+  if (result.muscles.empty()) rep.diagnosis = diagnose(rep);
+  return result;
+}
+
+namespace {
+
+ExtractionResult extractAtBodyScale(const Character& character, const ExtractionOptions& options) {
+  const int nv = character.mesh.numVertices();
   if (options.trunkHarmonics < 0 || options.trunkHarmonics > 16)
     throw InputError("trunkHarmonics must be in [0, 16], got " + std::to_string(options.trunkHarmonics));
   if (options.bumps.baseHarmonics < 0 || options.bumps.baseHarmonics > 16)
@@ -296,9 +411,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
   // Evidence is counted in sections of the default spacing (ExtractionOptions::minEvidence).
   double evidenceScale = 1.0;
   if (options.planes.spacing > 0) {
-    const Vec3 lo = character.mesh.vertices.colwise().minCoeff().transpose();
-    const Vec3 hi = character.mesh.vertices.colwise().maxCoeff().transpose();
-    evidenceScale = options.planes.spacing / ((hi - lo).maxCoeff() / 80.0);
+    evidenceScale = options.planes.spacing / (principalExtent(character.mesh.vertices) / 80.0);
   }
   std::vector<MuscleChain> kept;
   for (MuscleChain& c : chains) {
@@ -398,5 +511,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
   rep.muscles = static_cast<int>(result.muscles.size());
   return result;
 }
+
+}  // namespace
 
 }  // namespace myoskin

@@ -1,7 +1,8 @@
-// Bone roles for extraction: name heuristics for Rigify, MakeHuman and Mixamo rigs, chain topology for the
-// rest, caller overrides first.
+// Bone roles for extraction: the shape of the bone tree (limb pairs, girdles, trunk, neck), name heuristics for
+// Rigify, MakeHuman and Mixamo rigs where names say something, caller overrides first.
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <map>
 #include <string>
 #include <vector>
@@ -51,6 +52,197 @@ BoneRole roleFromName(const std::string& raw, bool& known) {
   return BoneRole::Ignore;
 }
 
+// ============================================================================
+// The bone tree
+// ============================================================================
+
+// What the shape of the bone tree says, for bones whose names say nothing: left/right limb pairs (sibling subtrees
+// that mirror each other, long against the body's other pairs), each limb's girdle, long segments and extremity,
+// the trunk between the limbs' attachments, the neck beyond the top one. Ignore for everything else.
+class TreeRoles {
+ public:
+  explicit TreeRoles(const Skeleton& sk) : sk_(sk), n_(sk.numBones()), kids_(n_), subtree_(n_, 0.0), count_(n_, 1) {
+    for (int i = 0; i < n_; ++i)
+      if (sk.bones[i].parent >= 0) kids_[sk.bones[i].parent].push_back(i);
+    for (int i = n_ - 1; i >= 0; --i) {  // parents come before children
+      subtree_[i] += sk.bones[i].length();
+      const int p = sk.bones[i].parent;
+      if (p >= 0) subtree_[p] += subtree_[i], count_[p] += count_[i];
+    }
+  }
+
+  std::vector<BoneRole> classify() const {
+    std::vector<BoneRole> roles(n_, BoneRole::Ignore);
+    const std::vector<std::pair<int, int>> pairs = limbPairs();
+    std::vector<int> attachments;
+    for (const auto& [a, b] : pairs) {
+      classifyLimb(a, roles);
+      classifyLimb(b, roles);
+      if (sk_.bones[a].parent >= 0) attachments.push_back(sk_.bones[a].parent);
+    }
+    if (pairs.empty()) {  // one limb on its own (an arm, a leg): the longest chain from the largest root
+      int root = -1;
+      for (int i = 0; i < n_; ++i)
+        if (sk_.bones[i].parent < 0 && (root < 0 || subtree_[i] > subtree_[root])) root = i;
+      if (root >= 0) classifyLimb(root, roles);
+      return roles;
+    }
+    // The trunk: every bone on the paths between the attachments; the root-most attachment is the pelvis end.
+    std::sort(attachments.begin(), attachments.end());
+    attachments.erase(std::unique(attachments.begin(), attachments.end()), attachments.end());
+    std::vector<char> trunk(n_, 0);
+    for (int a : attachments)
+      for (int b : attachments) markPath(a, b, trunk);
+    int bottom = attachments[0], top = attachments[0];
+    for (int a : attachments) {
+      if (depth(a) < depth(bottom)) bottom = a;
+      if (depth(a) > depth(top)) top = a;
+    }
+    for (int i = 0; i < n_; ++i)
+      if (trunk[i] && roles[i] == BoneRole::Ignore) roles[i] = BoneRole::Spine;
+    if (attachments.size() > 1) roles[bottom] = BoneRole::Pelvis;
+    // The neck: beyond the top attachment, its largest branch that is neither limb nor trunk, up to the head (the
+    // first bone that branches or ends).
+    int neck = -1;
+    for (int c : kids_[top])
+      if (!trunk[c] && roles[c] == BoneRole::Ignore && (neck < 0 || subtree_[c] > subtree_[neck])) neck = c;
+    for (int b = neck; b >= 0 && kids_[b].size() == 1 && attachments.size() > 1; b = kids_[b][0])
+      roles[b] = BoneRole::Neck;
+    return roles;
+  }
+
+ private:
+  const Skeleton& sk_;
+  int n_;
+  std::vector<std::vector<int>> kids_;
+  std::vector<double> subtree_;  // total bone length of each subtree
+  std::vector<int> count_;       // bones in each subtree
+
+  int depth(int b) const {
+    int d = 0;
+    for (; sk_.bones[b].parent >= 0; b = sk_.bones[b].parent) ++d;
+    return d;
+  }
+
+  void markPath(int a, int b, std::vector<char>& mark) const {
+    std::vector<char> up(n_, 0);
+    for (int x = a; x >= 0; x = sk_.bones[x].parent) up[x] = 1;
+    int lca = b;
+    while (lca >= 0 && !up[lca]) lca = sk_.bones[lca].parent;
+    if (lca < 0) return;
+    for (int x = a; x != lca; x = sk_.bones[x].parent) mark[x] = 1;
+    for (int x = b; x != lca; x = sk_.bones[x].parent) mark[x] = 1;
+    mark[lca] = 1;
+  }
+
+  // From `b` down through the child with the largest subtree, to a leaf.
+  std::vector<int> mainChain(int b) const {
+    std::vector<int> chain{b};
+    while (!kids_[chain.back()].empty()) {
+      int next = kids_[chain.back()][0];
+      for (int c : kids_[chain.back()])
+        if (subtree_[c] > subtree_[next]) next = c;
+      chain.push_back(next);
+    }
+    return chain;
+  }
+
+  double chainLength(const std::vector<int>& chain) const {
+    double s = 0.0;
+    for (int b : chain) s += sk_.bones[b].length();
+    return s;
+  }
+
+  // Sibling subtrees that mirror each other: as many bones, main chains of equal length, and each joint of one main
+  // chain reflected through the bisector plane of the two first heads lands on the other's (within 15 % of its length).
+  bool mirrored(int a, int b) const {
+    if (!sk_.bones[a].deform || !sk_.bones[b].deform) return false;
+    if (std::abs(count_[a] - count_[b]) > std::max(1, count_[a] / 10)) return false;
+    const std::vector<int> ca = mainChain(a), cb = mainChain(b);
+    const double la = chainLength(ca), lb = chainLength(cb);
+    if (!(la > 0) || !(lb > 0) || std::min(la, lb) < 0.85 * std::max(la, lb)) return false;
+    // The mirror plane bisects the first pair of chain joints that are apart (hip bones often share their head).
+    Vec3 ha = sk_.bones[a].head, hb = sk_.bones[b].head;
+    if ((hb - ha).norm() < 1e-3 * la) ha = sk_.bones[a].tail, hb = sk_.bones[b].tail;
+    if ((hb - ha).norm() < 1e-3 * la) return false;
+    const Vec3 normal = (hb - ha).normalized(), mid = 0.5 * (ha + hb);
+    auto reflect = [&](const Vec3& p) { return Vec3(p - 2.0 * (p - mid).dot(normal) * normal); };
+    const size_t m = std::min(ca.size(), cb.size());
+    for (size_t k = 0; k < m; ++k)
+      if ((reflect(sk_.bones[ca[k]].tail) - sk_.bones[cb[k]].tail).norm() > 0.15 * la) return false;
+    return true;
+  }
+
+  // Limb pairs, outermost first: mirrored siblings whose main chains are at least 0.4 of the longest pair's (ears,
+  // eyes, breasts and fingers are shorter), none inside another pair's subtree.
+  std::vector<std::pair<int, int>> limbPairs() const {
+    std::vector<std::pair<int, int>> pairs;
+    std::vector<double> lengths;
+    std::vector<char> taken(n_, 0);
+    std::vector<std::vector<int>> groups(kids_);
+    std::vector<int> roots;
+    for (int i = 0; i < n_; ++i)
+      if (sk_.bones[i].parent < 0) roots.push_back(i);
+    groups.push_back(roots);
+    for (const std::vector<int>& siblings : groups)
+      for (size_t x = 0; x < siblings.size(); ++x)
+        for (size_t y = x + 1; y < siblings.size(); ++y) {
+          const int a = siblings[x], b = siblings[y];
+          if (taken[a] || taken[b] || !mirrored(a, b)) continue;
+          taken[a] = taken[b] = 1;
+          pairs.emplace_back(a, b);
+          lengths.push_back(chainLength(mainChain(a)));
+        }
+    double longest = 0.0;
+    for (double l : lengths) longest = std::max(longest, l);
+    std::vector<std::pair<int, int>> limbs;
+    std::vector<char> inLimb(n_, 0);
+    for (size_t k = 0; k < pairs.size(); ++k) {
+      if (lengths[k] < 0.4 * longest) continue;
+      bool nested = false;
+      for (int x = sk_.bones[pairs[k].first].parent; x >= 0 && !nested; x = sk_.bones[x].parent) nested = inLimb[x];
+      if (nested) continue;
+      limbs.push_back(pairs[k]);
+      for (int side : {pairs[k].first, pairs[k].second}) {
+        std::vector<int> stack{side};
+        while (!stack.empty()) {
+          const int b = stack.back();
+          stack.pop_back();
+          inLimb[b] = 1;
+          for (int c : kids_[b]) stack.push_back(c);
+        }
+      }
+    }
+    std::sort(limbs.begin(), limbs.end());
+    return limbs;
+  }
+
+  // One limb along its main chain: segments of nearly collinear bones (twist splits join); a first segment shorter
+  // than 0.6 of the longest is its girdle (Shoulder: clavicle, hip bone), then Limb up to the longest segment and on while
+  // segments reach 0.4 of it; the first shorter one after it, or a bone with three or more children (hand, foot), and
+  // everything after is Ignore.
+  void classifyLimb(int root, std::vector<BoneRole>& roles) const {
+    const std::vector<int> chain = mainChain(root);
+    std::vector<int> segmentOf(chain.size(), 0);
+    std::vector<double> segments{sk_.bones[chain[0]].length()};
+    for (size_t k = 1; k < chain.size(); ++k) {
+      const Bone &a = sk_.bones[chain[k - 1]], &b = sk_.bones[chain[k]];
+      const double cosine = (a.tail - a.head).normalized().dot((b.tail - b.head).normalized());
+      const bool joined = (b.head - a.tail).norm() < 0.1 * a.length();
+      if (!(joined && cosine > std::cos(0.26))) segments.push_back(0.0);
+      segments.back() += b.length();
+      segmentOf[k] = static_cast<int>(segments.size()) - 1;
+    }
+    const int longest = static_cast<int>(std::max_element(segments.begin(), segments.end()) - segments.begin());
+    for (size_t k = 0; k < chain.size(); ++k) {
+      const int b = chain[k], segment = segmentOf[k];
+      if (kids_[b].size() >= 3 && k > 0) break;  // a hand or foot
+      if (segment > longest && segments[segment] < 0.4 * segments[longest]) break;
+      roles[b] = segment == 0 && longest > 0 && segments[0] < 0.6 * segments[longest] ? BoneRole::Shoulder : BoneRole::Limb;
+    }
+  }
+};
+
 }  // namespace
 
 // ============================================================================
@@ -79,12 +271,15 @@ std::vector<BoneRole> classifyBones(const Skeleton& skeleton, const std::map<std
   for (const auto& [name, role] : overrides)
     if (skeleton.find(name) < 0) throw InputError("bone role override names no bone: '" + name + "'");
   const int n = skeleton.numBones();
+  // Names are hints: where a name says nothing, the shape of the bone tree decides.
+  const std::vector<BoneRole> fromTree = TreeRoles(skeleton).classify();
   std::vector<BoneRole> roles(n, BoneRole::Ignore);
   std::vector<char> known(n, 0);
   for (int i = 0; i < n; ++i) {
     bool k = false;
     roles[i] = roleFromName(skeleton.bones[i].name, k);
-    known[i] = k;
+    if (!k) roles[i] = fromTree[i];
+    known[i] = k || fromTree[i] != BoneRole::Ignore;
   }
   // Topology for unknown names: a bone in the middle of a chain (parent and child both limb-like, long
   // enough) continues the limb; everything else stays ignored.
@@ -123,6 +318,19 @@ std::vector<BoneRole> classifyBones(const Skeleton& skeleton, const std::map<std
     if (it != overrides.end()) roles[i] = it->second;
   }
   return roles;
+}
+
+std::vector<BoneRole> characterBoneRoles(const Character& character, const std::map<std::string, BoneRole>& overrides) {
+  return classifyBones(weightedSkeleton(character), overrides);
+}
+
+Skeleton weightedSkeleton(const Character& character) {
+  Skeleton sk = character.skeleton;
+  if (!character.hasWeights()) return sk;
+  const std::vector<double> totals = boneWeightTotals(character.weights, sk.numBones());
+  for (int i = 0; i < sk.numBones(); ++i)
+    if (!(totals[i] > 0)) sk.bones[i].deform = false;
+  return sk;
 }
 
 }  // namespace myoskin

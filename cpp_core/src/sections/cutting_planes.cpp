@@ -121,8 +121,7 @@ std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const st
     throw InputError("bone roles: " + std::to_string(roles.size()) + " roles for " + std::to_string(sk.numBones()) + " bones");
   if (!(options.spacing >= 0) || !std::isfinite(options.spacing)) throw InputError("plane spacing must be >= 0");
   if (character.mesh.numVertices() == 0) throw InputError("cutting planes: the skin is empty");
-  const Vec3 lo = character.mesh.vertices.colwise().minCoeff().transpose(), hi = character.mesh.vertices.colwise().maxCoeff().transpose();
-  const double height = (hi - lo).maxCoeff();
+  const double height = principalExtent(character.mesh.vertices);
   const double spacing = options.spacing > 0 ? options.spacing : height / 80.0;
   if (!(spacing > 1e-5)) throw InputError("cutting planes: the skin has no extent");
 
