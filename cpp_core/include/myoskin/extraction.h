@@ -61,6 +61,11 @@ struct EndOptions {
   // shoulder swing 60 degrees): skin volume -1.1 to -1.8 % instead of -1.5 to -9.8 % (plain LBS -0.1 %);
   // 0 = straight lines (the paper's default).
   double jointWrapFraction = 0.3;
+  // A limb muscle whose ends lie on one segment split by twist bones (twistSplits) acts on no joint (the end search
+  // looks one bone further, which is the twist split): its end nearer a real joint is carried over it onto the next
+  // bone, this fraction of that bone's length (or, at the proximal end, of the segment's first bone) past the joint,
+  // as the biceps inserts on the forearm. 0 = off.
+  double spanCarry = 0.2;
 };
 
 struct SurfaceOptions {
@@ -315,6 +320,21 @@ Muscle buildMuscleEnds(const std::vector<MuscleSection>& sections, int bone, con
 // Hermite-tapered caps to the origin and insertion (one pole vertex each). Rings follow a frame
 // transported along the centres, so ellipses whose axis a turns do not twist the loft.
 Mesh loftMuscleSurface(const Muscle& muscle, const SurfaceOptions& options = {});
+
+// Per bone: 1 when its joint with its parent is a twist split, not a real joint: the bone continues its parent
+// (head at the parent's tail, within 30 degrees) and the skin the two share is blended over much of it (at least
+// 45 % of the vertices weighted mostly to the pair have both shares between 0.1 and 0.9; a real joint blends in a
+// narrow band: measured on MakeHuman 0.27-0.29 at elbow and knee, 0.53-0.68 at its twist splits). #B.
+std::vector<char> twistSplits(const Character& character);
+
+// Carries a muscle that spans no real joint over its nearer one (EndOptions::spanCarry), then rebuilds its root
+// curve ends and joint wrap (not its surface: loftMuscleSurface). `twist` from twistSplits. Does nothing when
+// spanCarry is 0, the ends already lie on different segments, or there is no bone across the joint.
+void spanRealJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<char>& twist, const EndOptions& options);
+
+// The root curve's Hermite ends rebuilt to muscle.origin/insertion (positions), section u by arc length; the
+// surface is left as it was. Throws InputError on no sections or NaN positions.
+void reattachEnds(Muscle& muscle, const EndOptions& options = {});
 
 // After the user moved muscle.origin/insertion (positions, mesh space): rebuilds the Hermite ends of the
 // root curve to the new attachment points, recomputes section u by arc length and re-lofts the surface.

@@ -213,7 +213,112 @@ Muscle buildMuscleEnds(const MuscleChain& chain, const std::vector<SectionBumps>
 // Re-attachment after the user moved an origin or insertion (locators)
 // ============================================================================
 
+// ============================================================================
+// Spanning real joints
+// ============================================================================
+
+void reattachEnds(Muscle& muscle, const EndOptions& options);
+
+std::vector<char> twistSplits(const Character& character) {
+  const Skeleton& sk = character.skeleton;
+  const int nb = sk.numBones();
+  std::vector<char> twist(nb, 0);
+  if (!character.hasWeights()) return twist;
+  const SkinWeights& w = character.weights;
+  std::vector<int> pairSkin(nb, 0), blended(nb, 0);  // per child: skin mostly on it + its parent, and how much blends
+  for (int v = 0; v < w.numVertices(); ++v) {
+    double total = 0.0;
+    for (int k = 0; k < w.influences(); ++k)
+      if (w.joints(v, k) >= 0) total += w.weights(v, k);
+    if (!(total > 0)) continue;
+    for (int k = 0; k < w.influences(); ++k) {
+      const int c = w.joints(v, k);
+      if (c < 0 || sk.bones[c].parent < 0) continue;
+      double wc = 0.0, wp = 0.0;
+      for (int q = 0; q < w.influences(); ++q) {
+        if (w.joints(v, q) == c) wc += w.weights(v, q);
+        if (w.joints(v, q) == sk.bones[c].parent) wp += w.weights(v, q);
+      }
+      if (wc + wp < 0.5 * total) continue;
+      ++pairSkin[c];
+      const double share = wc / (wc + wp);
+      blended[c] += share > 0.1 && share < 0.9;
+    }
+    // (a vertex counts for each of its bones that has a parent among its influences)
+  }
+  for (int c = 0; c < nb; ++c) {
+    const int p = sk.bones[c].parent;
+    if (p < 0 || pairSkin[c] < 16) continue;
+    const Bone &a = sk.bones[p], &b = sk.bones[c];
+    const bool continues = (b.head - a.tail).norm() < 0.1 * a.length() &&
+                           (a.tail - a.head).normalized().dot((b.tail - b.head).normalized()) > std::cos(30.0 * M_PI / 180.0);
+    twist[c] = continues && blended[c] >= 0.45 * pairSkin[c];
+  }
+  return twist;
+}
+
+void spanRealJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<char>& twist, const EndOptions& options) {
+  if (!(options.spanCarry > 0) || muscle.sections.empty()) return;
+  const int o = skeleton.find(muscle.origin.bone), e = skeleton.find(muscle.insertion.bone);
+  if (o < 0 || e < 0 || static_cast<int>(twist.size()) != skeleton.numBones()) return;
+  auto segmentRoot = [&](int b) {
+    while (twist[b] && skeleton.bones[b].parent >= 0) b = skeleton.bones[b].parent;
+    return b;
+  };
+  auto continuation = [&](int b) {  // the child across b's tail with the most bones below it (-1: none)
+    int best = -1;
+    double bestLength = -1.0;
+    for (int c : skeleton.children(b)) {
+      if ((skeleton.bones[c].head - skeleton.bones[b].tail).norm() > 0.1 * skeleton.bones[b].length()) continue;
+      double length = 0.0;
+      std::vector<int> stack{c};
+      while (!stack.empty()) {
+        const int x = stack.back();
+        stack.pop_back();
+        length += skeleton.bones[x].length();
+        for (int g : skeleton.children(x)) stack.push_back(g);
+      }
+      if (length > bestLength) best = c, bestLength = length;
+    }
+    return best;
+  };
+  const int root = segmentRoot(o);
+  if (segmentRoot(e) != root) return;  // already across a real joint
+  int last = root;  // the segment's last bone, through its twist children
+  for (int next = continuation(last); next >= 0 && twist[next]; next = continuation(last)) last = next;
+  if (last == root) return;  // one bone: the end search already reached across its joints (boneAndNeighbours)
+  const Vec3 proximal = skeleton.bones[root].head, distal = skeleton.bones[last].tail;
+  const int below = continuation(last), above = skeleton.bones[root].parent;
+  const bool toDistal = below >= 0 && (above < 0 || (muscle.insertion.position - distal).norm() <=
+                                                          (muscle.origin.position - proximal).norm());
+  if (toDistal) {
+    const Bone& b = skeleton.bones[below];
+    const double carry = options.spanCarry * b.length();
+    muscle.insertion = MuscleAttachment{b.name, b.head + carry * (b.tail - b.head).normalized()};
+  } else if (above >= 0) {
+    const Bone& b = skeleton.bones[above];
+    const double carry = std::min(options.spanCarry * (skeleton.bones[root].tail - proximal).norm(), b.length());
+    muscle.origin = MuscleAttachment{b.name, b.tail - carry * (b.tail - b.head).normalized()};
+  } else {
+    return;
+  }
+  double meanB = 0;
+  for (const MuscleSection& sec : muscle.sections) meanB += sec.b;
+  meanB /= static_cast<double>(muscle.sections.size());
+  const EndPoint op{skeleton.find(muscle.origin.bone), muscle.origin.position};
+  const EndPoint ep{skeleton.find(muscle.insertion.bone), muscle.insertion.position};
+  muscle.wrap = options.jointWrapFraction > 0 ? defaultJointWrap(op, ep, meanB * options.jointWrapFraction, skeleton)
+                                              : MuscleWrap{};
+  reattachEnds(muscle, options);
+}
+
 void reattachMuscle(Muscle& muscle, const EndOptions& options, const SurfaceOptions& surface) {
+  reattachEnds(muscle, options);
+  muscle.surface = loftMuscleSurface(muscle, surface);
+}
+
+// The root curve's Hermite ends rebuilt to the muscle's (moved) origin and insertion; section u by arc length.
+void reattachEnds(Muscle& muscle, const EndOptions& options) {
   const int n = static_cast<int>(muscle.sections.size());
   if (n == 0) throw InputError("muscle '" + muscle.name + "': no sections to re-attach");
   if (!muscle.origin.position.allFinite() || !muscle.insertion.position.allFinite())
@@ -225,7 +330,6 @@ void reattachMuscle(Muscle& muscle, const EndOptions& options, const SurfaceOpti
   if (last.norm() < 1e-12) last = muscle.sections[n - 1].normal;
   rebuildRootCurve(muscle, muscle.origin.position, muscle.insertion.position, first.normalized(), last.normalized(),
                    options);
-  muscle.surface = loftMuscleSurface(muscle, surface);
 }
 
 }  // namespace myoskin

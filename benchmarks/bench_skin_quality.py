@@ -1,0 +1,29 @@
+"""Skin quality at bent joints, LBS vs DQS vs Myoskin through the core (benchmarks/skin_quality.py defines the
+measures). Prints a table per character; never asserts. Usage (./myoskin.sh bench runs it):
+
+    PYTHONPATH=build/blender_scripts/addons/myoskin python3 benchmarks/bench_skin_quality.py [SHARED_DIR]
+"""
+import os
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import _core as core  # noqa: E402  (the staged compiled module, on PYTHONPATH)
+import skin_quality  # noqa: E402
+
+shared = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(__file__), "..", "..", "shared")
+characters = [("makehuman_muscular_male", "characters/makehuman_muscular_male/makehuman_muscular_male.glb",
+               skin_quality.MAKEHUMAN_JOINTS)]
+print(f"{'character':24s} {'joint':20s} {'LBS band':>9s} {'DQS band':>9s} {'Myoskin':>9s} {'bulge over LBS':>22s}")
+for name, relative, joints in characters:
+    path = os.path.join(shared, relative)
+    if not os.path.exists(path):
+        print(f"{name}: skipped, needs {path}")
+        continue
+    character = core.load_character(path, require_weights=True)
+    start = time.perf_counter()
+    muscles, _ = core.extract_muscles(character)
+    for row in skin_quality.measure(core, character, muscles, joints):
+        print(f"{name:24s} {row['label']:20s} {100 * row['lbs']:+8.1f}% {100 * row['dqs']:+8.1f}% "
+              f"{100 * row['myoskin']:+8.1f}% {1000 * row['bulge']:7.1f} mm ({row['bulge'] / row['limb_radius']:.3f} r)")
+    print(f"{name}: {len(muscles)} muscles, measured in {time.perf_counter() - start:.1f} s")

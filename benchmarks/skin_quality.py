@@ -1,0 +1,149 @@
+"""Skin quality at bent joints through the core: band volume change and muscle bulge for plain linear blend
+skinning (LBS), dual quaternions (DQS) and Myoskin (Equation 3 with the extracted muscles).
+
+- band: the skin within 1.5 limb radii of the joint; its volume is the cone volume of its triangles from the
+  joint's posed position (rigid motion of either side keeps it), reported as the change from rest;
+- bulge: the largest outward move of the upper segment's skin over the LBS skin, along the LBS normals.
+
+Used by benchmarks/bench_skin_quality.py (the table) and the Python tests (the targets).
+"""
+import numpy as np
+
+# Joints to bend, per rig naming: (label, moving bone, hinge bone, upper-segment bones, direction, degrees). The
+# moving bone and its subtree turn about its head by `degrees`, about the axis perpendicular to the hinge bone and
+# to `direction`: "forward"/"backward" along the character's facing (+Z), or "outward" (about the facing axis,
+# swinging away from the body's mirror plane X = 0).
+MAKEHUMAN_JOINTS = [
+    ("elbow flexion", "lowerarm01.L", "upperarm02.L", ("upperarm01.L", "upperarm02.L"), "forward", 120.0),
+    ("knee flexion", "lowerleg01.L", "upperleg02.L", ("upperleg01.L", "upperleg02.L"), "backward", 120.0),
+    ("shoulder abduction", "upperarm01.L", "upperarm01.L", ("shoulder01.L", "clavicle.L"), "outward", 120.0),
+    ("hip flexion", "upperleg01.L", "upperleg02.L", ("pelvis.L",), "forward", 90.0),
+]
+
+
+def _rotation(axis, degrees):
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    t = np.radians(degrees)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * k @ k
+
+
+def bent_pose(character, bone, hinge, direction, degrees):
+    """#B by 4 by 4 posed matrices: `bone` and its subtree turned about its head by `degrees`, about the axis
+    perpendicular to the `hinge` bone and to `direction` (a world-space rotation; every other bone at rest)."""
+    core_names = list(character.bone_names)
+    parents = np.asarray(character.bone_parents)
+    heads, tails = np.asarray(character.bone_heads), np.asarray(character.bone_tails)
+    rest = np.asarray(character.bone_rest)
+    b = core_names.index(bone)
+    h = core_names.index(hinge)
+    d = tails[h] - heads[h]
+    d = d / np.linalg.norm(d)
+    if direction in ("forward", "backward"):
+        target = np.array([0.0, 0.0, 1.0 if direction == "forward" else -1.0])
+        axis = np.cross(d, target)
+    else:  # outward: about the facing axis, the tail swinging away from the mirror plane
+        axis = np.array([0.0, 0.0, 1.0 if heads[b][0] > 0 else -1.0])
+    rot = _rotation(axis, degrees)
+    joint = heads[b]
+    moved = np.zeros(len(core_names), bool)
+    for i in range(len(core_names)):  # parents come first
+        moved[i] = i == b or (parents[i] >= 0 and moved[parents[i]])
+    m = np.eye(4)
+    m[:3, :3] = rot
+    m[:3, 3] = joint - rot @ joint
+    pose = rest.copy()
+    pose[moved] = m @ rest[moved]
+    return pose
+
+
+def dqs(rest_vertices, joints, weights, transforms):
+    """Dual quaternion skinning (rigid part of each transform), #V by 3."""
+    def quat(r):
+        w = np.sqrt(max(0.0, 1 + r[0, 0] + r[1, 1] + r[2, 2])) / 2
+        if w > 1e-6:
+            return np.array([w, (r[2, 1] - r[1, 2]) / (4 * w), (r[0, 2] - r[2, 0]) / (4 * w), (r[1, 0] - r[0, 1]) / (4 * w)])
+        i = np.argmax(np.diag(r))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = np.sqrt(max(0.0, 1 + r[i, i] - r[j, j] - r[k, k])) * 2
+        q = np.zeros(4)
+        q[0] = (r[k, j] - r[j, k]) / s
+        q[1 + i], q[1 + j], q[1 + k] = s / 4, (r[j, i] + r[i, j]) / s, (r[k, i] + r[i, k]) / s
+        return q
+
+    def qmul(a, b):
+        return np.stack([a[..., 0] * b[..., 0] - (a[..., 1:] * b[..., 1:]).sum(-1),
+                         *(a[..., 0:1] * b[..., 1:] + b[..., 0:1] * a[..., 1:] + np.cross(a[..., 1:], b[..., 1:])).T], -1) \
+            if a.ndim > 1 else np.concatenate([[a[0] * b[0] - a[1:] @ b[1:]], a[0] * b[1:] + b[0] * a[1:] + np.cross(a[1:], b[1:])])
+
+    real = np.array([quat(t[:3, :3]) for t in transforms])
+    dual = np.array([0.5 * qmul(np.concatenate([[0.0], t[:3, 3]]), q) for t, q in zip(transforms, real)])
+    jj = np.where(joints < 0, 0, joints)
+    w = np.where(joints < 0, 0.0, weights)
+    w = w / np.maximum(w.sum(1, keepdims=True), 1e-12)
+    pivot = real[jj[:, 0]]
+    sign = np.sign((real[jj] * pivot[:, None, :]).sum(-1))
+    sign[sign == 0] = 1
+    b0 = (w[..., None] * sign[..., None] * real[jj]).sum(1)
+    be = (w[..., None] * sign[..., None] * dual[jj]).sum(1)
+    norm = np.linalg.norm(b0, axis=1, keepdims=True)
+    b0, be = b0 / norm, be / norm
+    v = np.asarray(rest_vertices, float)
+    # p' = p + 2 r x (r x p + w p) + 2 (w t - w0 r + r x re), with b0 = (w, r), be = (w0, re)
+    w0, r = b0[:, :1], b0[:, 1:]
+    we, re = be[:, :1], be[:, 1:]
+    out = v + 2 * np.cross(r, np.cross(r, v) + w0 * v)
+    out += 2 * (w0 * re - we * r + np.cross(r, re))
+    return out
+
+
+def band_volume_change(rest, posed, triangles, joint_rest, joint_posed, radius):
+    """Relative volume change of the skin within `radius` of the joint (cone volume from the joint)."""
+    inside = np.linalg.norm(rest - joint_rest, axis=1) <= radius
+    tris = triangles[inside[triangles].all(1)]
+    if len(tris) == 0:
+        raise ValueError("no skin within the band")
+
+    def cone(v, apex):
+        a, b, c = v[tris[:, 0]] - apex, v[tris[:, 1]] - apex, v[tris[:, 2]] - apex
+        return np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0
+
+    v0 = cone(rest, joint_rest)
+    return (cone(posed, joint_posed) - v0) / abs(v0)
+
+
+def measure(core, character, muscles, joints, hybrid_options=None):
+    """Per joint: dict(label, lbs, dqs, myoskin band changes, bulge (m), limb_radius)."""
+    limb_radius = None
+    rig = core.MuscleRig(character, muscles)
+    hj, hw = core.hybrid_weights(character, rig, **(hybrid_options or {}))
+    rest = np.asarray(character.vertices)
+    tris = np.asarray(character.triangles)
+    sj, sw = np.asarray(character.weight_joints), np.asarray(character.weight_values)
+    names = list(character.bone_names)
+    heads = np.asarray(character.bone_heads)
+    _, report = core.extract_muscles(character, build_surfaces=False) if limb_radius is None else (None, None)
+    limb_radius = report["limb_radius"]
+    rows = []
+    for label, bone, hinge, upper, direction, degrees in joints:
+        if bone not in names:
+            continue
+        pose = bent_pose(character, bone, hinge, direction, degrees)
+        skel = core.skeleton_transforms(character, pose)
+        lbs = np.asarray(core.skin(rest, sj, sw, skel), float)
+        dq = dqs(rest, sj, sw, skel)
+        state = rig.evaluate(pose)
+        full = core.skinning_transforms(character, pose, rig, state["joint_matrices"])
+        myo = np.asarray(core.skin(rest, hj, hw, full), float)
+        b = names.index(bone)
+        joint_rest = heads[b]
+        joint_posed = pose[b][:3, 3]
+        band = {k: band_volume_change(rest, v, tris, joint_rest, joint_posed, 1.5 * limb_radius)
+                for k, v in (("lbs", lbs), ("dqs", dq), ("myoskin", myo))}
+        upper_ids = [names.index(u) for u in upper if u in names]
+        dominant = sj[np.arange(len(sj)), np.argmax(sw, axis=1)]
+        on_upper = np.isin(dominant, upper_ids)
+        normals = np.asarray(core.vertex_normals(lbs, tris))
+        bulge = float(((myo - lbs) * normals).sum(1)[on_upper].max()) if on_upper.any() else float("nan")
+        rows.append(dict(label=label, bulge=bulge, limb_radius=limb_radius, **band))
+    return rows

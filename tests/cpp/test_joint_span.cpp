@@ -1,0 +1,63 @@
+// Muscles act on the joints they span: twist splits told apart from real joints, and a muscle whose ends lie on
+// one split segment carried over its nearer real joint.
+#include <gtest/gtest.h>
+
+#include <set>
+#include <string>
+
+#include "myoskin/extraction.h"
+#include "myoskin/io.h"
+#include "myoskin/synthetic_character.h"
+#include "test_support.h"
+
+using namespace myoskin;
+
+TEST(JointSpan, TwistSplitsAreToldApartFromRealJoints) {
+  const std::string path = test::sharedPath("characters/makehuman_muscular_male/makehuman_muscular_male.glb");
+  MYOSKIN_REQUIRE_SHARED(path);
+  const Character c = loadCharacter(path);
+  const std::vector<char> twist = twistSplits(c);
+  auto is = [&](const char* bone) { return twist[c.skeleton.find(bone)] != 0; };
+  for (const char* side : {".L", ".R"}) {
+    const std::string s = side;
+    for (const char* split : {"upperarm02", "lowerarm02", "upperleg02", "lowerleg02"})
+      EXPECT_TRUE(is((split + s).c_str())) << split << s;
+    // (shoulder01 -> upperarm01, the shoulder, blends as broadly as a twist split on this rig: 62 % of its skin)
+    for (const char* joint : {"lowerarm01", "lowerleg01", "foot"})  // elbow, knee, ankle
+      EXPECT_FALSE(is((joint + s).c_str())) << joint << s;
+  }
+  // The synthetic arm has no twist bones.
+  const std::vector<char> none = twistSplits(makeSyntheticArm().character);
+  ASSERT_FALSE(none.empty());
+  for (char t : none) EXPECT_EQ(t, 0);
+}
+
+TEST(JointSpan, NoLimbMuscleEndsInsideOneSplitSegment) {
+  const std::string path = test::sharedPath("characters/makehuman_muscular_male/makehuman_muscular_male.glb");
+  MYOSKIN_REQUIRE_SHARED(path);
+  const Character c = loadCharacter(path);
+  const std::vector<char> twist = twistSplits(c);
+  auto segment = [&](const std::string& bone) {
+    int b = c.skeleton.find(bone);
+    while (b >= 0 && twist[b]) b = c.skeleton.bones[b].parent;
+    return b;
+  };
+  const ExtractionResult r = extractMuscles(c);
+  int limb = 0, elbow = 0;
+  for (const Muscle& m : r.muscles) {
+    if (m.region.rfind("torso.", 0) == 0) continue;
+    ++limb;
+    EXPECT_NE(segment(m.origin.bone), segment(m.insertion.bone))
+        << m.name << ": " << m.origin.bone << " -> " << m.insertion.bone << " spans no real joint";
+    elbow += m.insertion.bone.rfind("lowerarm01", 0) == 0;
+  }
+  ASSERT_GE(limb, 8);
+  EXPECT_GE(elbow, 4);  // the upper arm's muscles insert on the forearm, both sides
+  // Off: the ends stay where the sections end.
+  ExtractionOptions off;
+  off.ends.spanCarry = 0.0;
+  int inside = 0;
+  for (const Muscle& m : extractMuscles(c, off).muscles)
+    inside += m.region.rfind("torso.", 0) != 0 && segment(m.origin.bone) == segment(m.insertion.bone);
+  EXPECT_GT(inside, 0);
+}
