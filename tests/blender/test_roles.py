@@ -131,6 +131,18 @@ def test_all_bones_ignored_says_why_and_changes_nothing():
     assert ("prop", "show_ignored") in log
 
 
+def test_smooth_arm_warns_no_significant_relief():
+    """Sections analysed but nothing stands out: a WARNING naming the cause (not an error: the extraction ran)."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, muscle_scale=0.0) == {'FINISHED'}
+    arm = bpy.context.view_layer.objects.active.parent
+    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
+    done = module("operators.muscles").last_extraction[arm.name]
+    assert done["analysed"] and done["muscles"] == len(arm.myoskin.muscles) == 0, done
+    assert done["diagnosis"].startswith("no significant relief"), done
+    assert done["message"].startswith("Found no muscles on SyntheticArm: no significant relief"), done
+
+
 def test_left_out_parts_are_named_per_mesh():
     """A rigid prop bound to one bone (a helmet-like cube in its own mesh) is left out of the analysis, and
     the INFO message names the mesh it came from through the weld map."""

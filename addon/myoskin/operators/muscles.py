@@ -215,20 +215,19 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
         finally:
             wm.progress_end()
         seconds = sum(report["timings"].values())
-        message = (f"Extracted {len(muscles)} muscles from {label} ({report['sections']} sections, "
-                   f"{report['bumps']} bumps, {seconds:.2f} s)")
+        counts = f"({report['sections']} sections, {report['bumps']} bumps, {seconds:.2f} s)"
+        if muscles:
+            message = f"Extracted {len(muscles)} muscles from {label} {counts}"
+        else:
+            message = (f"Found no muscles on {label}: {report['diagnosis'] or 'no significant relief'} {counts}; "
+                       f"lower Min Confidence, mark a region or set bone roles")
         if overrides:
             message += f"; {len(overrides)} bone role override{'s' if len(overrides) != 1 else ''}"
         if left_out:
             message += "; left out " + "; ".join(left_out)
         message += blender_io.skipped_message(skipped)
-        level = 'INFO'
-        if not muscles:
-            level = 'WARNING'
-            message += (f": found nothing, {report['diagnosis'] or 'no significant relief'} (lower Min "
-                        f"Confidence, mark a region, or set bone roles)")
         last_extraction[arm.name]["message"] = message
-        return level, message
+        return ('INFO' if muscles else 'WARNING'), message
 
 
 class MYOSKIN_OT_detect_bone_roles(_MuscleOperator, bpy.types.Operator):
