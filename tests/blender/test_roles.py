@@ -128,7 +128,9 @@ def test_all_bones_ignored_says_why_and_changes_nothing():
     # the panel draws with no chain and lists the ignored bones
     log = draw_panel(bpy.types.MYOSKIN_PT_bone_roles).log
     assert ("label", f"0 chain(s), {active} override(s)") in log, log
-    assert ("prop", "show_ignored") in log
+    assert ("prop", "show_ignored") in log and ("template_list", "MYOSKIN_UL_bone_roles") not in log
+    bpy.context.scene.myoskin_ui.show_ignored = True
+    assert ("template_list", "MYOSKIN_UL_bone_roles") in draw_panel(bpy.types.MYOSKIN_PT_bone_roles).log
 
 
 def test_smooth_arm_warns_no_significant_relief():
