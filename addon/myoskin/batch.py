@@ -17,7 +17,11 @@ exceptions too).
 The character is the scene's armature and every mesh it deforms (several skinned meshes, e.g. Body, Feet,
 Head, Legs, are analysed as one surface and all bound); `--object MESH` uses that mesh alone, `--object
 ARMATURE` picks one character when the scene holds several. Meshes of the armature without weights of its
-bones are skipped, and the log says so.
+bones are skipped, and the log says so, as it names the skin components left out of the analysis (eyes,
+hair, helmets: small or rigidly bound to one bone) per mesh. `--roles ROLES.json` ({"bone": "role"}) sets the
+bone role overrides extraction uses (stored in the saved file). When nothing can be analysed (no limb chain
+recognised, every section skipped) batch exits 1 with "myoskin batch: error: nothing could be analysed: <why>";
+when sections were analysed but no muscle stands out, it goes on and logs "found no muscles: <why>".
 """
 import argparse
 import importlib
@@ -38,6 +42,9 @@ def parse_args(argv):
     p.add_argument("--spacing", type=float, default=-1.0,
                    help="section spacing in metres (0 = automatic, default: the add-on's preferences)")
     p.add_argument("--min-confidence", type=float, default=-1.0, help="default: the add-on's preferences")
+    p.add_argument("--roles", metavar="ROLES.json",
+                   help="bone role overrides for extract, {\"bone\": \"role\"} (roles: ignore, limb, shoulder, neck, "
+                        "spine, pelvis; the CLI's format); they replace the overrides stored in the file")
     p.add_argument("--bind", action="store_true", help="bind the muscles to the armature")
     p.add_argument("--max-influences", type=int, default=0, metavar="N",
                    help="bones and muscle joints per vertex after --bind (default: the rig's setting, 8; 4 for game engines)")
@@ -140,7 +147,10 @@ def run_op(op, **kwargs):
     try:
         result = op(**kwargs)
     except RuntimeError as e:
-        fail(str(e).replace("Error: ", "").strip())
+        text = str(e).replace("Error: ", "").strip()
+        if text.startswith("Nothing could be analysed"):
+            text = "n" + text[1:]  # myoskin batch: error: nothing could be analysed: <why>
+        fail(text)
     if result != {'FINISHED'}:
         fail(f"{op.idname()} returned {result}")
 
@@ -163,6 +173,24 @@ def save(path):
         bpy.ops.wm.save_as_mainfile(filepath=path)
     except RuntimeError as e:
         fail(f"cannot save {path}: {str(e).replace('Error: ', '').strip()}")
+
+
+def read_roles(path):
+    """{bone: role} from a role file ({"bone": "role"}, or {"roles": {...}} as `myoskin roles -o` may write)."""
+    import json
+    path = os.path.abspath(path)
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = json.load(f)
+    except OSError as e:
+        fail(f"--roles {path}: cannot read it ({e.strerror or e})")
+    except ValueError as e:
+        fail(f"--roles {path}: not valid JSON ({e})")
+    if isinstance(data, dict) and isinstance(data.get("roles"), dict):
+        data = data["roles"]
+    if not isinstance(data, dict) or not all(isinstance(k, str) and isinstance(v, str) for k, v in data.items()):
+        fail(f"--roles {path}: a role file is an object {{\"bone\": \"role\"}}")
+    return data
 
 
 def parse_range(text):
@@ -190,6 +218,18 @@ def main(argv):
     if arm is None:
         fail(f"'{target.name}' has no armature: add an Armature modifier or parent it to an armature")
     state = arm.myoskin
+    if args.roles:
+        if args.command != "extract":
+            fail("--roles needs the extract command (the roles are what extraction uses)")
+        roles = read_roles(args.roles)
+        missing = sorted(b for b in roles if b not in arm.data.bones)
+        if missing:
+            fail(f"--roles {os.path.abspath(args.roles)}: '{arm.name}' has no bone {', '.join(repr(b) for b in missing)}")
+        try:
+            addon("state").set_role_overrides(arm, roles)
+        except ValueError as e:
+            fail(f"--roles {os.path.abspath(args.roles)}: {e}")
+        log(f"bone roles: {len(roles)} override(s) from {args.roles}")
     if args.command == "extract":
         if state.bound:
             run_op(bpy.ops.myoskin.unbind)
@@ -200,6 +240,11 @@ def main(argv):
         if target == arm:
             for obj, why in blender_io.character_meshes(arm)[1]:
                 log(f"skipped mesh {obj.name}: {why}")
+        done = addon("operators.muscles").last_extraction.get(arm.name, {})
+        for line in done.get("left_out", []):
+            log(f"left out {line}")
+        if not len(state.muscles):
+            log(f"found no muscles: {done.get('diagnosis') or 'no significant relief'}")
     if args.bind:
         if args.max_influences:
             if not 1 <= args.max_influences <= 16:

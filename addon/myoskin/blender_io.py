@@ -527,6 +527,12 @@ class CombinedCharacter:
         array = np.asarray(array)
         return [array[self.rows(k)] for k in range(len(self.meshes))]
 
+    def source_meshes(self, welded):
+        """The mesh object each welded vertex index of `welded` comes from (its first Blender vertex's)."""
+        _values, first = np.unique(self.weld_map, return_index=True)  # every welded vertex occurs
+        rows = first[np.asarray(welded, dtype=np.int64)]
+        return [self.meshes[int(np.searchsorted(self.offsets, r, side='right')) - 1] for r in rows]
+
     def mask(self, masks):
         """#welded booleans from one #V_k boolean mask per mesh (None = none of that mesh's vertices)."""
         out = np.zeros(self.num_vertices, dtype=bool)

@@ -30,6 +30,11 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
         .bind_text                        Text datablock "<armature>.bind.json", the bind record: skeleton
                                           (names, parents, heads, tails, rest), the bound muscles' json,
                                           joint names, surface object names (live update rebuilds from it)
+        .bone_roles[i]                    MyoskinBoneRole, one per bone, as Detect (or Extract) last saw them:
+            name                          the bone
+            detected                      the role the core gave it from the bone tree ('' = not detected)
+            role                          the role Extract uses; an OVERRIDE where it differs from `detected`
+                                          (role_overrides; passed to the core as bone_roles=)
     skin_obj["myoskin_original_weights"]  ID property on every bound mesh: its vertex groups before Bind
                                           (Unbind restores them exactly)
 
@@ -114,6 +119,30 @@ class MyoskinMuscle(bpy.types.PropertyGroup):
     surface: PointerProperty(name="Surface", type=bpy.types.Object)
 
 
+BONE_ROLES = (
+    ('ignore', "Ignore", "No cutting planes around this bone"),
+    ('limb', "Limb", "A limb segment: planes across the bone (arm, leg, tail)"),
+    ('shoulder', "Shoulder", "A shoulder or hip girdle: planes around the joint"),
+    ('neck', "Neck", "The neck: planes across it"),
+    ('spine', "Spine", "The trunk: horizontal planes over the abdomen and chest"),
+    ('pelvis', "Pelvis", "The pelvis / hips (the root of the legs)"),
+)
+ROLE_NAMES = tuple(r[0] for r in BONE_ROLES)
+
+
+class MyoskinBoneRole(bpy.types.PropertyGroup):
+    name: StringProperty(name="Bone", description="The bone")
+    detected: StringProperty(name="Detected Role", description="The role the core detected from the bone tree "
+                                                               "('' = not detected)", options={'HIDDEN'})
+    role: EnumProperty(name="Role", items=BONE_ROLES, default='ignore',
+                       description="The role Extract gives this bone (an override where it differs from the "
+                                   "detected role)")
+
+    @property
+    def overridden(self):
+        return self.role != self.detected
+
+
 class MyoskinSkin(bpy.types.PropertyGroup):
     object: PointerProperty(name="Mesh", type=bpy.types.Object, description="A mesh of the character")
 
@@ -139,6 +168,9 @@ class MyoskinRigState(bpy.types.PropertyGroup):
                                             "are kept and renormalised; 4 is what game engines take)")
     bind_text: PointerProperty(name="Bind Record", type=bpy.types.Text,
                                description="<armature>.bind.json: what Bind built (live update rebuilds from it)")
+    bone_roles: CollectionProperty(type=MyoskinBoneRole, name="Bone Roles",
+                                   description="Per bone: the detected role and the one Extract uses")
+    bone_role_index: IntProperty(name="Active Bone Role", default=0, min=0, options={'HIDDEN'})
 
 
 def rig_skins(arm_obj):
@@ -160,6 +192,111 @@ def set_rig_skins(arm_obj, skins):
     for obj in skins:
         state.skins.add().object = obj
     state.skin = skins[0] if skins else None
+
+
+def role_overrides(arm_obj):
+    """{bone: role} the user set against the detected roles (what Extract passes as bone_roles=)."""
+    state = rig_state(arm_obj)
+    if state is None:
+        return {}
+    return {item.name: item.role for item in state.bone_roles if item.role != item.detected}
+
+
+def missing_role_bones(arm_obj):
+    """Bones named by a role override that the armature no longer has (renamed or deleted), sorted."""
+    bones = arm_obj.data.bones
+    return sorted(b for b in role_overrides(arm_obj) if b not in bones)
+
+
+def set_role_overrides(arm_obj, overrides):
+    """Replace the overrides by `overrides` ({bone: role}); ValueError naming an unknown role. Bones without an
+    item get one (detected '' until the next Detect)."""
+    bad = {b: r for b, r in overrides.items() if r not in ROLE_NAMES}
+    if bad:
+        bone, role = next(iter(sorted(bad.items())))
+        raise ValueError(f"bone '{bone}': unknown role '{role}' ({', '.join(ROLE_NAMES)})")
+    state = rig_state(arm_obj)
+    for item in state.bone_roles:
+        if item.name not in overrides:
+            if item.detected:
+                item.role = item.detected
+    stale = [i for i, item in enumerate(state.bone_roles) if not item.detected and item.name not in overrides]
+    for i in reversed(stale):
+        state.bone_roles.remove(i)
+    items = {item.name: item for item in state.bone_roles}
+    for bone, role in overrides.items():
+        item = items.get(bone)
+        if item is None:
+            item = state.bone_roles.add()
+            item.name = bone
+        item.role = role
+
+
+def set_detected_roles(arm_obj, detected):
+    """Store the detected roles ({bone: role}, in bone order) and keep the overrides of bones still there.
+    Returns the overrides dropped because their bone is gone ({bone: role})."""
+    state = rig_state(arm_obj)
+    overrides = role_overrides(arm_obj)
+    state.bone_roles.clear()
+    for bone, role in detected.items():
+        item = state.bone_roles.add()
+        item.name, item.detected = bone, role
+        item.role = overrides.get(bone, role)
+    return {b: r for b, r in overrides.items() if b not in detected}
+
+
+def clear_role_overrides(arm_obj):
+    """Every bone back to its detected role; items of bones never detected are removed. Returns how many
+    overrides were cleared."""
+    state = rig_state(arm_obj)
+    cleared = len(role_overrides(arm_obj))
+    for i in reversed(range(len(state.bone_roles))):
+        item = state.bone_roles[i]
+        if item.detected:
+            item.role = item.detected
+        else:
+            state.bone_roles.remove(i)
+    return cleared
+
+
+def role_chains(arm_obj):
+    """The bones with a role other than ignore grouped into chains for display: [(role, [item, ...])], each a
+    run of bones of one role from parent to child (a bone whose parent has another role, or none, starts a
+    chain; it continues through the first child of the same role). Ordered by the chains' first bones."""
+    state = rig_state(arm_obj)
+    if state is None:
+        return []
+    items = {item.name: item for item in state.bone_roles}
+    bones = arm_obj.data.bones
+    chains = []
+    for item in state.bone_roles:
+        if item.role == 'ignore':
+            continue
+        bone = bones.get(item.name)
+        parent = bone.parent if bone is not None else None
+        parent_item = items.get(parent.name) if parent is not None else None
+        if parent_item is not None and parent_item.role == item.role and \
+                _first_child_of_role(bones.get(parent.name), items, item.role) == item.name:
+            continue  # continues its parent's chain
+        chain = [item]
+        while bone is not None:
+            child = _first_child_of_role(bone, items, item.role)
+            if child is None:
+                break
+            chain.append(items[child])
+            bone = bones.get(child)
+        chains.append((item.role, chain))
+    return chains
+
+
+def _first_child_of_role(bone, items, role):
+    if bone is None:
+        return None
+    for child in bone.children:
+        item = items.get(child.name)
+        if item is not None and item.role == role:
+            return child.name
+    return None
 
 
 def rig_state(arm_obj):
@@ -191,13 +328,15 @@ class MyoskinSceneSettings(bpy.types.PropertyGroup):
     region_source: EnumProperty(name="Region", items=(
         ('FACES', "Selected Faces", "The faces selected on the skin"),
         ('GROUP', "Vertex Group", "The vertices of the vertex group above")), default='FACES')
+    show_ignored: BoolProperty(name="Ignored Bones", default=False,
+                               description="List the bones Extract ignores (to give one of them a role)")
     frame_start: IntProperty(name="Start", default=1)
     frame_end: IntProperty(name="End", default=120)
     export_path: StringProperty(name="glTF", subtype='FILE_PATH', default="//character.glb")
     pc2_path: StringProperty(name="PC2", subtype='FILE_PATH', default="//skin.pc2")
 
 
-classes = (MyoskinMuscle, MyoskinSkin, MyoskinRigState, MyoskinSceneSettings)
+classes = (MyoskinMuscle, MyoskinBoneRole, MyoskinSkin, MyoskinRigState, MyoskinSceneSettings)
 
 
 def register():

@@ -213,9 +213,41 @@ def test_batch_character_in_four_meshes():
         err = float(np.abs(io.evaluated_vertices(m) - rest).max())
         assert err < 1e-6 * size, f"{m.name}: rest pose moved by {err:.3g} (mesh size {size:.3g}) after bind"
     print(f"  woman_soldier: {len(state.muscles)} muscles, vertices with muscle weights per mesh {muscled}")
+    # the log names the skin parts left out of the analysis (the head's eyes, hair, helmet) by their mesh
+    left_out = [line for line in log.splitlines() if "] left out " in line]
+    assert left_out and all("'Soldier_Head'" in line for line in left_out), log
+    assert any("rigid part" in line and "(bound to 'Head')" in line for line in left_out), left_out
     # --object picks one mesh
     code, log = batch("--input", path, "--object", meshes[0].name, "extract")
     assert code == 0 and f"(1 mesh(es): {meshes[0].name})" in log, log
+
+
+def test_batch_roles():
+    """--roles ROLES.json (the CLI's format) sets the bone role overrides: upper_arm ignored gives no muscle
+    there and the override is saved; every bone ignored: exit 1 naming why nothing could be analysed; a role
+    file naming a bone that is not there or an unknown role: exit 1, clear message."""
+    import json
+    src, out = os.path.join(TMP, "roles_arm.blend"), os.path.join(TMP, "roles_out.blend")
+    arm_blend(src)
+    roles = os.path.join(TMP, "roles.json")
+    with open(roles, "w") as f:
+        json.dump({"upper_arm": "ignore"}, f)
+    code, log = batch("extract", "--roles", roles, "-o", out, blend=src)
+    assert code == 0 and "bone roles: 1 override(s)" in log, log
+    bpy.ops.wm.open_mainfile(filepath=out)
+    arm = [o for o in bpy.data.objects if o.type == 'ARMATURE'][0]
+    found = [m.region for m in arm.myoskin.muscles]
+    assert "forearm" in found and "upper_arm" not in found, found
+    assert module("state").role_overrides(arm) == {"upper_arm": "ignore"}
+    with open(roles, "w") as f:
+        json.dump({b: "ignore" for b in ("clavicle", "upper_arm", "forearm", "hand")}, f)
+    code, log = batch("extract", "--roles", roles, "-o", out + "2", blend=src)
+    assert code == 1 and "myoskin batch: error: nothing could be analysed: no limb chain recognised" in log, log
+    assert "Traceback" not in log and not os.path.exists(out + "2"), log
+    with open(roles, "w") as f:
+        json.dump({"humerus": "limb", "forearm": "arm"}, f)
+    code, log = batch("extract", "--roles", roles, blend=src)
+    assert code == 1 and "has no bone 'humerus'" in log and "Traceback" not in log, log
 
 
 def test_batch_errors():

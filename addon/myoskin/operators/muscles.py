@@ -7,7 +7,12 @@ from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 
 from .. import blender_io, core_loader, muscle_io
 from ..preferences import get_preferences
-from ..state import LIMITS, rig_skins, rig_state, set_rig_skins
+from ..state import (LIMITS, clear_role_overrides, missing_role_bones, rig_skins, rig_state, role_overrides,
+                     set_detected_roles, set_rig_skins)
+
+# The last Extract per armature name: {"muscles", "diagnosis", "analysed", "left_out" (lines naming the skin
+# components left out of the analysis), "message"} (batch prints it; the operator's report says the same).
+last_extraction = {}
 
 
 def _muscle_object_armature(obj):
@@ -70,8 +75,59 @@ def group_masks(skins, group_name):
     return masks
 
 
+def extraction_input(obj):
+    """(skin meshes, armature, skipped meshes) Extract uses for the active object: a muscle object's rig, a
+    mesh alone, or the armature with every mesh it deforms."""
+    if _muscle_object_armature(obj) is not None:
+        skins, arm = resolve_rig(obj)
+        return skins, arm, []
+    return blender_io.resolve_character(obj)
+
+
+def extraction_character(skins, arm):
+    """(CombinedCharacter, scale, core Character in the extraction space: armature space times its scale)."""
+    combined = blender_io.combined_character(skins, arm)
+    scale = blender_io.armature_scale(arm)
+    return combined, scale, blender_io.scaled_character(combined.character, scale)
+
+
+def checked_role_overrides(arm):
+    """The armature's bone role overrides ({bone: role}); ValueError naming bones that are gone."""
+    missing = missing_role_bones(arm)
+    if missing:
+        raise ValueError(f"Bone role overrides name {'a bone' if len(missing) == 1 else 'bones'} '{arm.name}' no "
+                         f"longer has: {', '.join(repr(b) for b in missing)} (renamed or deleted?): Detect in "
+                         f"Bone Roles drops {'it' if len(missing) == 1 else 'them'}, Reset clears every override")
+    return role_overrides(arm)
+
+
+def left_out_lines(combined, excluded):
+    """Lines naming the skin components the core left out of the analysis, per mesh and reason, e.g.
+    "18 rigid parts of 'Soldier_Head' (bound to 'Head')" (first_vertex mapped back through the weld map)."""
+    if not excluded:
+        return []
+    meshes = combined.source_meshes([e["first_vertex"] for e in excluded])
+    groups = {}
+    for e, mesh in zip(excluded, meshes):
+        g = groups.setdefault((mesh.name, e["reason"]), {"parts": 0, "vertices": 0, "bones": []})
+        g["parts"] += 1
+        g["vertices"] += int(e["vertices"])
+        if e["bone"] and e["bone"] not in g["bones"]:
+            g["bones"].append(e["bone"])
+    lines = []
+    for (mesh, reason), g in groups.items():
+        line = f"{g['parts']} {reason} part{'s' if g['parts'] != 1 else ''} of '{mesh}'"
+        if g["bones"]:
+            line += f" (bound to {', '.join(repr(b) for b in g['bones'][:4])}{' ...' if len(g['bones']) > 4 else ''})"
+        else:
+            line += f" ({g['vertices']} vertices)"
+        lines.append(line)
+    return lines
+
+
 class _MuscleOperator:
-    """Reports ValueError/RuntimeError from run() as UI errors; run() returns the INFO message."""
+    """Reports ValueError/RuntimeError from run() as UI errors; run() returns the INFO message, or
+    (level, message) for another level ('WARNING')."""
     bl_options = {'REGISTER', 'UNDO'}
 
     def execute(self, context):
@@ -80,8 +136,11 @@ class _MuscleOperator:
         except (ValueError, RuntimeError, core_loader.CoreUnavailableError) as e:
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}
+        level = 'INFO'
+        if isinstance(message, tuple):
+            level, message = message
         if message:
-            self.report({'INFO'}, message)
+            self.report({level}, message)
         return {'FINISHED'}
 
 
@@ -105,55 +164,107 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
 
     def run(self, context):
         prefs = get_preferences(context)
-        obj = context.active_object
-        if _muscle_object_armature(obj) is not None:
-            skins, arm = resolve_rig(obj)
-            skipped = []
-        else:  # a mesh alone, or the armature with every mesh it deforms
-            skins, arm, skipped = blender_io.resolve_character(obj)
+        skins, arm, skipped = extraction_input(context.active_object)
         state = rig_state(arm)
         if state.bound:
             raise ValueError(f"'{arm.name}' is bound: Unbind before extracting again")
         for skin in skins:
             blender_io.require_weights(skin, arm)
+        overrides = checked_role_overrides(arm)
         spacing = prefs.section_spacing if self.spacing < 0 else self.spacing
         min_sections = prefs.min_sections if self.min_sections < 0 else self.min_sections
         min_confidence = prefs.min_confidence if self.min_confidence < 0 else self.min_confidence
+        label = character_label(skins, arm)
         wm = context.window_manager
         wm.progress_begin(0, 4)
         try:
-            combined = blender_io.combined_character(skins, arm)
-            scale = blender_io.armature_scale(arm)
-            character = blender_io.scaled_character(combined.character, scale)  # the extraction space
+            combined, scale, character = extraction_character(skins, arm)
             wm.progress_update(1)
             mask = None
             if self.limit == 'SELECTED':
                 mask = combined.mask(selection_masks(skins))
                 if not mask.any():
-                    raise ValueError(f"No vertices selected on {character_label(skins, arm)} "
-                                     f"(Limit To = Selected Vertices)")
+                    raise ValueError(f"No vertices selected on {label} (Limit To = Selected Vertices)")
             elif self.limit == 'GROUP':
                 mask = combined.mask(group_masks(skins, self.vertex_group))
                 if not mask.any():
                     raise ValueError(f"Vertex group '{self.vertex_group}' is empty")
-            muscles, report = core_loader.core().extract_muscles(
+            core = core_loader.core()
+            muscles, report = core.extract_muscles(
                 character, spacing=spacing, vertex_mask=mask, min_confidence=min_confidence,
-                min_sections=min_sections, joint_wrap=self.joint_wrap)
+                min_sections=min_sections, joint_wrap=self.joint_wrap, bone_roles=overrides)
+            left_out = left_out_lines(combined, report.get("excluded", []))
+            last_extraction[arm.name] = {"muscles": len(muscles), "analysed": report["analysed"],
+                                         "diagnosis": report["diagnosis"], "left_out": left_out}
+            if not report["analysed"]:  # nothing changed in the file: say why
+                hint = ""
+                if report["diagnosis"].startswith("no limb chain"):
+                    hint = ("; Reset in Extract > Bone Roles clears your overrides" if overrides else
+                            "; give bones a role in Extract > Bone Roles (Detect lists them)")
+                message = f"Nothing could be analysed: {report['diagnosis']} ({label}{hint})"
+                last_extraction[arm.name]["message"] = message
+                raise ValueError(message)
             wm.progress_update(2)
             muscles = muscle_io.scale_muscles(muscles, 1.0 / scale)  # back to the armature's space
             for m in muscles:
                 m.joints = prefs.joints_per_muscle
                 m.bulge = prefs.bulge_factor
             muscle_io.set_muscles(arm, skins, muscles)
+            set_detected_roles(arm, core.bone_roles(character))  # the panel's list (overrides kept)
             wm.progress_update(3)
         finally:
             wm.progress_end()
         seconds = sum(report["timings"].values())
-        message = (f"Extracted {len(muscles)} muscles from {character_label(skins, arm)} ({report['sections']} "
-                   f"sections, {report['bumps']} bumps, {seconds:.2f} s)")
-        if not muscles:
-            message += ": no significant bumps (smooth skin?); lower Min Confidence or mark a region"
-        return message + blender_io.skipped_message(skipped)
+        counts = f"({report['sections']} sections, {report['bumps']} bumps, {seconds:.2f} s)"
+        if muscles:
+            message = f"Extracted {len(muscles)} muscles from {label} {counts}"
+        else:
+            message = (f"Found no muscles on {label}: {report['diagnosis'] or 'no significant relief'} {counts}; "
+                       f"lower Min Confidence, mark a region or set bone roles")
+        if overrides:
+            message += f"; {len(overrides)} bone role override{'s' if len(overrides) != 1 else ''}"
+        if left_out:
+            message += "; left out " + "; ".join(left_out)
+        message += blender_io.skipped_message(skipped)
+        last_extraction[arm.name]["message"] = message
+        return ('INFO' if muscles else 'WARNING'), message
+
+
+class MYOSKIN_OT_detect_bone_roles(_MuscleOperator, bpy.types.Operator):
+    """Find each bone's role (limb, shoulder, spine, neck, pelvis, ignore) from the bone tree and the skin, as
+    Extract will; your overrides of bones still there are kept"""
+    bl_idname = "myoskin.detect_bone_roles"
+    bl_label = "Detect"
+
+    def run(self, context):
+        skins, arm, _skipped = extraction_input(context.active_object)
+        for skin in skins:
+            blender_io.require_weights(skin, arm)
+        _combined, _scale, character = extraction_character(skins, arm)
+        detected = core_loader.core().bone_roles(character)
+        dropped = set_detected_roles(arm, detected)
+        overrides = role_overrides(arm)
+        active = sum(1 for r in detected.values() if r != 'ignore')
+        message = (f"Bone roles of '{arm.name}': {active} of {len(detected)} bones have a role"
+                   f"{f', {len(overrides)} overridden' if overrides else ''}")
+        if dropped:
+            message += (f"; dropped the overrides of {', '.join(repr(b) for b in sorted(dropped))} (no such bone "
+                        f"any more)")
+            return 'WARNING', message
+        return message
+
+
+class MYOSKIN_OT_reset_bone_roles(_MuscleOperator, bpy.types.Operator):
+    """Clear every bone role override: each bone gets its detected role again"""
+    bl_idname = "myoskin.reset_bone_roles"
+    bl_label = "Reset"
+
+    def run(self, context):
+        arm = blender_io.find_armature(context.active_object)  # a muscle object's parent is its armature
+        if arm is None:
+            raise ValueError("Select a skinned mesh or its armature")
+        cleared = clear_role_overrides(arm)
+        return f"Cleared {cleared} bone role override{'s' if cleared != 1 else ''} of '{arm.name}'"
 
 
 class MYOSKIN_OT_add_muscle_from_region(_MuscleOperator, bpy.types.Operator):
@@ -187,7 +298,7 @@ class MYOSKIN_OT_add_muscle_from_region(_MuscleOperator, bpy.types.Operator):
         # min_confidence 1: only the forced muscle survives (forced muscles are always kept).
         muscles, report = core_loader.core().extract_muscles(
             character, spacing=prefs.section_spacing, forced_regions=[region], min_confidence=1.0,
-            min_sections=max(2, prefs.min_sections // 2))
+            min_sections=max(2, prefs.min_sections // 2), bone_roles=checked_role_overrides(arm))
         if not muscles:
             raise ValueError("No bump found in the marked region: mark a larger region across the muscle "
                              "(it needs several cutting planes)")
@@ -312,6 +423,7 @@ class MYOSKIN_OT_snap_locator(_MuscleOperator, bpy.types.Operator):
         return f"{item.name}: {self.end} on {bone}"
 
 
-classes = (MYOSKIN_OT_extract_muscles, MYOSKIN_OT_add_muscle_from_region, MYOSKIN_OT_remove_muscle,
+classes = (MYOSKIN_OT_extract_muscles, MYOSKIN_OT_detect_bone_roles, MYOSKIN_OT_reset_bone_roles,
+           MYOSKIN_OT_add_muscle_from_region, MYOSKIN_OT_remove_muscle,
            MYOSKIN_OT_mirror_muscle, MYOSKIN_OT_select_muscle, MYOSKIN_OT_refresh_muscles,
            MYOSKIN_OT_snap_locator)

@@ -5,8 +5,8 @@ import bpy
 
 from .. import core_loader
 from ..blender_io import find_armature
-from ..state import rig_skins
-from .common import draw_character_info, draw_core_status, draw_last_error
+from ..state import BONE_ROLES, missing_role_bones, role_chains, role_overrides, rig_skins
+from .common import draw_character_info, draw_core_status, draw_last_error, draw_wrapped
 
 
 class MyoskinSidebar:
@@ -84,6 +84,71 @@ class MYOSKIN_PT_extract(_WorkflowStep, bpy.types.Panel):
         if state.bound:
             layout.label(text="Bound: unbind to extract again", icon='LOCKED')
         layout.label(text=f"{len(state.muscles)} muscles on {arm.name}", icon='OUTLINER_OB_MESH')
+
+
+ROLE_LABELS = {key: label for key, label, _description in BONE_ROLES}
+
+
+def draw_role_row(layout, item):
+    """One bone: its name, an override mark, its role (editable)."""
+    row = layout.row(align=True)
+    split = row.split(factor=0.55, align=True)
+    split.label(text=item.name, icon='BONE_DATA')
+    split.prop(item, "role", text="")
+    if item.overridden:
+        row.label(text="", icon='MODIFIER_ON')  # an override (differs from the detected role)
+
+
+class MYOSKIN_UL_bone_roles(bpy.types.UIList):
+    """The ignored bones (to give one a role); filter by name."""
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0):
+        draw_role_row(layout, item)
+
+    def filter_items(self, context, data, propname):
+        items = getattr(data, propname)
+        flags = [self.bitflag_filter_item if item.role == 'ignore' else 0 for item in items]
+        if self.filter_name:
+            by_name = bpy.types.UI_UL_list.filter_items_by_name(self.filter_name, self.bitflag_filter_item, items,
+                                                                "name")
+            flags = [f & n for f, n in zip(flags, by_name)]
+        return flags, []
+
+
+class MYOSKIN_PT_bone_roles(_WorkflowStep, bpy.types.Panel):
+    bl_label = "Bone Roles"
+    bl_parent_id = "MYOSKIN_PT_extract"
+    bl_options = {'DEFAULT_CLOSED'}
+    hint = "Which bones get cutting planes"
+
+    def draw_step(self, context, layout, skin, arm, state, ui):
+        row = layout.row(align=True)
+        row.operator("myoskin.detect_bone_roles", icon='VIEWZOOM')
+        row.operator("myoskin.reset_bone_roles", icon='LOOP_BACK')
+        if len(state.bone_roles) == 0:
+            layout.label(text="Not detected yet: Detect (or Extract) lists them", icon='INFO')
+            return
+        missing = missing_role_bones(arm)
+        if missing:
+            box = layout.box()
+            box.alert = True
+            draw_wrapped(box, f"Overrides name bones '{arm.name}' no longer has: {', '.join(missing)} (renamed or "
+                              f"deleted?). Detect drops them, Reset clears every override.", context, icon='ERROR')
+        overrides = role_overrides(arm)
+        chains = role_chains(arm)
+        layout.label(text=f"{len(chains)} chain(s), {len(overrides)} override(s)", icon='ARMATURE_DATA')
+        for role, chain in chains:
+            box = layout.box()
+            col = box.column(align=True)
+            col.label(text=f"{ROLE_LABELS.get(role, role)}: {chain[0].name}"
+                           f"{f' .. {chain[-1].name}' if len(chain) > 1 else ''}")
+            for item in chain:
+                draw_role_row(col, item)
+        ignored = sum(1 for item in state.bone_roles if item.role == 'ignore')
+        layout.prop(ui, "show_ignored", text=f"Ignored Bones ({ignored})",
+                    icon='TRIA_DOWN' if ui.show_ignored else 'TRIA_RIGHT', emboss=False)
+        if ui.show_ignored and ignored:
+            layout.template_list("MYOSKIN_UL_bone_roles", "", state, "bone_roles", state, "bone_role_index", rows=4)
 
 
 class MYOSKIN_UL_muscles(bpy.types.UIList):
@@ -177,5 +242,6 @@ class MYOSKIN_PT_bake(_WorkflowStep, bpy.types.Panel):
         op.filepath, op.frame_start, op.frame_end = ui.pc2_path, ui.frame_start, ui.frame_end
 
 
-classes = (MYOSKIN_UL_muscles, MYOSKIN_PT_main, MYOSKIN_PT_extract, MYOSKIN_PT_edit, MYOSKIN_PT_bind,
+classes = (MYOSKIN_UL_muscles, MYOSKIN_UL_bone_roles, MYOSKIN_PT_main, MYOSKIN_PT_extract, MYOSKIN_PT_bone_roles,
+           MYOSKIN_PT_edit, MYOSKIN_PT_bind,
            MYOSKIN_PT_bake)
