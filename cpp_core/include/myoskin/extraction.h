@@ -321,12 +321,6 @@ Muscle buildMuscleEnds(const std::vector<MuscleSection>& sections, int bone, con
 // transported along the centres, so ellipses whose axis a turns do not twist the loft.
 Mesh loftMuscleSurface(const Muscle& muscle, const SurfaceOptions& options = {});
 
-// Per bone: 1 when its joint with its parent is a twist split, not a real joint: the bone continues its parent
-// (head at the parent's tail, within 30 degrees) and the skin the two share is blended over much of it (at least
-// 45 % of the vertices weighted mostly to the pair have both shares between 0.1 and 0.9; a real joint blends in a
-// narrow band: measured on MakeHuman 0.27-0.29 at elbow and knee, 0.53-0.68 at its twist splits). #B.
-std::vector<char> twistSplits(const Character& character);
-
 // Carries a muscle that spans no real joint over its nearer one (EndOptions::spanCarry), then rebuilds its root
 // curve ends and joint wrap (not its surface: loftMuscleSurface). `twist` from twistSplits. Does nothing when
 // spanCarry is 0, the ends already lie on different segments, or there is no bone across the joint.

@@ -178,7 +178,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
 
   // The body scale: the character's units are found from its limb radius (the power of ten that brings it nearest
   // the reference) and it is scaled about the origin into them, so mm, cm, m and x100 exports give the same muscles.
-  const std::vector<BoneRole> roles = classifyBones(body.skeleton, options.roleOverrides);
+  const std::vector<BoneRole> roles = characterBoneRoles(body, options.roleOverrides);
   const double limbRadius = bodyLimbRadius(body, roles);
   const double reference = options.referenceLimbRadius == 0 ? kReferenceLimbRadius : options.referenceLimbRadius;
   const double factor = reference > 0 && limbRadius > 0 ? std::pow(10.0, std::round(std::log10(reference / limbRadius))) : 1.0;
@@ -224,7 +224,7 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
 
   // Stage 1: roles and planes.
   auto t0 = Clock::now();
-  const std::vector<BoneRole> roles = classifyBones(sk, options.roleOverrides);
+  const std::vector<BoneRole> roles = characterBoneRoles(character, options.roleOverrides);
   rep.bones = sk.numBones();
   for (BoneRole r : roles) rep.activeBones += r != BoneRole::Ignore;
   const std::vector<CuttingPlane> planes = makeCuttingPlanes(character, roles, options.planes);

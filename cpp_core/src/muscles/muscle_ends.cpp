@@ -219,44 +219,6 @@ Muscle buildMuscleEnds(const MuscleChain& chain, const std::vector<SectionBumps>
 
 void reattachEnds(Muscle& muscle, const EndOptions& options);
 
-std::vector<char> twistSplits(const Character& character) {
-  const Skeleton& sk = character.skeleton;
-  const int nb = sk.numBones();
-  std::vector<char> twist(nb, 0);
-  if (!character.hasWeights()) return twist;
-  const SkinWeights& w = character.weights;
-  std::vector<int> pairSkin(nb, 0), blended(nb, 0);  // per child: skin mostly on it + its parent, and how much blends
-  for (int v = 0; v < w.numVertices(); ++v) {
-    double total = 0.0;
-    for (int k = 0; k < w.influences(); ++k)
-      if (w.joints(v, k) >= 0) total += w.weights(v, k);
-    if (!(total > 0)) continue;
-    for (int k = 0; k < w.influences(); ++k) {
-      const int c = w.joints(v, k);
-      if (c < 0 || sk.bones[c].parent < 0) continue;
-      double wc = 0.0, wp = 0.0;
-      for (int q = 0; q < w.influences(); ++q) {
-        if (w.joints(v, q) == c) wc += w.weights(v, q);
-        if (w.joints(v, q) == sk.bones[c].parent) wp += w.weights(v, q);
-      }
-      if (wc + wp < 0.5 * total) continue;
-      ++pairSkin[c];
-      const double share = wc / (wc + wp);
-      blended[c] += share > 0.1 && share < 0.9;
-    }
-    // (a vertex counts for each of its bones that has a parent among its influences)
-  }
-  for (int c = 0; c < nb; ++c) {
-    const int p = sk.bones[c].parent;
-    if (p < 0 || pairSkin[c] < 16) continue;
-    const Bone &a = sk.bones[p], &b = sk.bones[c];
-    const bool continues = (b.head - a.tail).norm() < 0.1 * a.length() &&
-                           (a.tail - a.head).normalized().dot((b.tail - b.head).normalized()) > std::cos(30.0 * M_PI / 180.0);
-    twist[c] = continues && blended[c] >= 0.45 * pairSkin[c];
-  }
-  return twist;
-}
-
 void spanRealJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<char>& twist, const EndOptions& options) {
   if (!(options.spanCarry > 0) || muscle.sections.empty()) return;
   const int o = skeleton.find(muscle.origin.bone), e = skeleton.find(muscle.insertion.bone);

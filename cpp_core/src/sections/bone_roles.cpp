@@ -61,7 +61,9 @@ BoneRole roleFromName(const std::string& raw, bool& known) {
 // the trunk between the limbs' attachments, the neck beyond the top one. Ignore for everything else.
 class TreeRoles {
  public:
-  explicit TreeRoles(const Skeleton& sk) : sk_(sk), n_(sk.numBones()), kids_(n_), subtree_(n_, 0.0), count_(n_, 1) {
+  // twist: per bone, 1 when its joint with its parent is a twist split (twistSplits); null = judged by collinearity.
+  TreeRoles(const Skeleton& sk, const std::vector<char>* twist)
+      : sk_(sk), twist_(twist), n_(sk.numBones()), kids_(n_), subtree_(n_, 0.0), count_(n_, 1) {
     for (int i = 0; i < n_; ++i)
       if (sk.bones[i].parent >= 0) kids_[sk.bones[i].parent].push_back(i);
     for (int i = n_ - 1; i >= 0; --i) {  // parents come before children
@@ -113,6 +115,7 @@ class TreeRoles {
 
  private:
   const Skeleton& sk_;
+  const std::vector<char>* twist_;
   int n_;
   std::vector<std::vector<int>> kids_;
   std::vector<double> subtree_;  // total bone length of each subtree
@@ -228,8 +231,9 @@ class TreeRoles {
     for (size_t k = 1; k < chain.size(); ++k) {
       const Bone &a = sk_.bones[chain[k - 1]], &b = sk_.bones[chain[k]];
       const double cosine = (a.tail - a.head).normalized().dot((b.tail - b.head).normalized());
-      const bool joined = (b.head - a.tail).norm() < 0.1 * a.length();
-      if (!(joined && cosine > std::cos(0.26))) segments.push_back(0.0);
+      const bool joined = twist_ ? (*twist_)[chain[k]] != 0
+                                 : (b.head - a.tail).norm() < 0.1 * a.length() && cosine > std::cos(0.26);
+      if (!joined) segments.push_back(0.0);
       segments.back() += b.length();
       segmentOf[k] = static_cast<int>(segments.size()) - 1;
     }
@@ -267,12 +271,16 @@ BoneRole boneRoleFromName(const std::string& name) {
   throw InputError("unknown bone role '" + name + "' (ignore, limb, shoulder, neck, spine or pelvis)");
 }
 
-std::vector<BoneRole> classifyBones(const Skeleton& skeleton, const std::map<std::string, BoneRole>& overrides) {
+std::vector<BoneRole> classifyBones(const Skeleton& skeleton, const std::map<std::string, BoneRole>& overrides,
+                                    const std::vector<char>* twist) {
+  if (twist && static_cast<int>(twist->size()) != skeleton.numBones())
+    throw InputError("bone roles: " + std::to_string(twist->size()) + " twist flags for " +
+                     std::to_string(skeleton.numBones()) + " bones");
   for (const auto& [name, role] : overrides)
     if (skeleton.find(name) < 0) throw InputError("bone role override names no bone: '" + name + "'");
   const int n = skeleton.numBones();
   // Names are hints: where a name says nothing, the shape of the bone tree decides.
-  const std::vector<BoneRole> fromTree = TreeRoles(skeleton).classify();
+  const std::vector<BoneRole> fromTree = TreeRoles(skeleton, twist).classify();
   std::vector<BoneRole> roles(n, BoneRole::Ignore);
   std::vector<char> known(n, 0);
   for (int i = 0; i < n; ++i) {
@@ -320,8 +328,47 @@ std::vector<BoneRole> classifyBones(const Skeleton& skeleton, const std::map<std
   return roles;
 }
 
+std::vector<char> twistSplits(const Character& character) {
+  const Skeleton& sk = character.skeleton;
+  const int nb = sk.numBones();
+  std::vector<char> twist(nb, 0);
+  if (!character.hasWeights()) return twist;
+  const SkinWeights& w = character.weights;
+  std::vector<int> pairSkin(nb, 0), blended(nb, 0);  // per child: skin mostly on it + its parent, and how much blends
+  for (int v = 0; v < w.numVertices(); ++v) {
+    double total = 0.0;
+    for (int k = 0; k < w.influences(); ++k)
+      if (w.joints(v, k) >= 0) total += w.weights(v, k);
+    if (!(total > 0)) continue;
+    for (int k = 0; k < w.influences(); ++k) {
+      const int c = w.joints(v, k);
+      if (c < 0 || sk.bones[c].parent < 0) continue;
+      double wc = 0.0, wp = 0.0;
+      for (int q = 0; q < w.influences(); ++q) {
+        if (w.joints(v, q) == c) wc += w.weights(v, q);
+        if (w.joints(v, q) == sk.bones[c].parent) wp += w.weights(v, q);
+      }
+      if (wc + wp < 0.5 * total) continue;
+      ++pairSkin[c];
+      const double share = wc / (wc + wp);
+      blended[c] += share > 0.1 && share < 0.9;
+    }
+    // (a vertex counts for each of its bones that has a parent among its influences)
+  }
+  for (int c = 0; c < nb; ++c) {
+    const int p = sk.bones[c].parent;
+    if (p < 0 || pairSkin[c] < 16) continue;
+    const Bone &a = sk.bones[p], &b = sk.bones[c];
+    const bool continues = (b.head - a.tail).norm() < 0.1 * a.length() &&
+                           (a.tail - a.head).normalized().dot((b.tail - b.head).normalized()) > std::cos(30.0 * M_PI / 180.0);
+    twist[c] = continues && blended[c] >= 0.45 * pairSkin[c];
+  }
+  return twist;
+}
+
 std::vector<BoneRole> characterBoneRoles(const Character& character, const std::map<std::string, BoneRole>& overrides) {
-  return classifyBones(weightedSkeleton(character), overrides);
+  const std::vector<char> twist = twistSplits(character);
+  return classifyBones(weightedSkeleton(character), overrides, character.hasWeights() ? &twist : nullptr);
 }
 
 Skeleton weightedSkeleton(const Character& character) {
