@@ -37,8 +37,9 @@ std::vector<BoneRole> classifyBones(const Skeleton& skeleton, const std::map<std
 std::vector<char> twistSplits(const Character& character);
 
 
-// The skeleton with every bone that carries no skin weight marked non-deform (IK targets, poles, helpers); the
-// character's own when it has no weights.
+// The skeleton as extraction sees it: bone tails from the joints (each bone ends at its continuing child's head;
+// importers guess tails differently) and every bone that carries no skin weight marked non-deform (IK targets,
+// poles, helpers).
 Skeleton weightedSkeleton(const Character& character);
 
 // classifyBones on weightedSkeleton(character) with its twistSplits: the roles extraction uses.

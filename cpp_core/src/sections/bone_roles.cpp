@@ -371,8 +371,52 @@ std::vector<BoneRole> characterBoneRoles(const Character& character, const std::
   return classifyBones(weightedSkeleton(character), overrides, character.hasWeights() ? &twist : nullptr);
 }
 
+namespace {
+
+// Bone tails from the joints, so that extraction does not depend on how an importer guessed them (Blender's glTF
+// importer: along the joint's Y axis in 4.x/5.x, along the joint axis nearest the children in 3.4, as long as the
+// nearest child or 0.004 armature units; the CLI's loader: at the child along Y). A bone ends at its continuing
+// child's head: the child best aligned with its given direction, within 30 degrees, or its only child elsewhere. A bone
+// with none keeps its direction, and when it is shorter than a tenth of its parent it takes the parent's length.
+// The rest matrix follows with the given roll (the given X axis, made perpendicular).
+void tailsFromJoints(Skeleton& sk) {
+  const int n = sk.numBones();
+  if (n == 0) return;
+  Vec3 lo = sk.bones[0].head, hi = lo;
+  for (const Bone& b : sk.bones) lo = lo.cwiseMin(b.head), hi = hi.cwiseMax(b.head);
+  const double same = 1e-6 * std::max((hi - lo).norm(), 1e-300);  // "at the same place"
+  const double cosLimit = std::cos(30.0 * M_PI / 180.0);
+  for (int i = 0; i < n; ++i) {  // parents first: a parent's new length is known
+    Bone& b = sk.bones[i];
+    const Vec3 given = b.tail - b.head;
+    const bool hasDirection = given.norm() > same;
+    int pick = -1, elsewhere = 0, only = -1;
+    double best = cosLimit;
+    for (int c : sk.children(i)) {
+      const Vec3 d = sk.bones[c].head - b.head;
+      if (d.norm() <= same) continue;
+      ++elsewhere, only = c;
+      const double cosine = hasDirection ? d.normalized().dot(given.normalized()) : -1.0;
+      if (cosine >= best) pick = c, best = cosine;
+    }
+    if (pick < 0 && elsewhere == 1) pick = only;
+    Vec3 tail = b.tail;
+    if (pick >= 0) {
+      tail = sk.bones[pick].head;
+    } else if (hasDirection && b.parent >= 0 && given.norm() < 0.1 * sk.bones[b.parent].length()) {
+      tail = b.head + given.normalized() * sk.bones[b.parent].length();
+    }
+    if ((tail - b.head).norm() <= same || (tail - b.tail).norm() <= same) continue;
+    b.tail = tail;
+    b.rest = boneMatrix(b.head, b.tail, b.rest.block<3, 1>(0, 0));
+  }
+}
+
+}  // namespace
+
 Skeleton weightedSkeleton(const Character& character) {
   Skeleton sk = character.skeleton;
+  tailsFromJoints(sk);
   if (!character.hasWeights()) return sk;
   const std::vector<double> totals = boneWeightTotals(character.weights, sk.numBones());
   for (int i = 0; i < sk.numBones(); ++i)
