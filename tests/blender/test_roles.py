@@ -53,11 +53,14 @@ def test_default_bone_names_get_the_same_muscles():
     assert len(state.muscles) == len(direct) >= 4, (len(state.muscles), len(direct))
     assert regions(state) == sorted(renamed[m.region] for m in direct), (regions(state), [m.region for m in direct])
     # Extract recorded the detected roles: the panel lists the limb chain with a role per bone
-    assert [(i.name, i.detected, i.role) for i in state.bone_roles] == [(b, "limb", "limb") for b in renamed.values()]
+    # (the tree alone tells the clavicle and the hand from the upper arm and forearm: the same roles as the names)
+    named = core().bone_roles(core().make_synthetic_arm(seed=1)[0])
+    assert named == {"clavicle": "shoulder", "upper_arm": "limb", "forearm": "limb", "hand": "ignore"}, named
+    assert [(i.name, i.detected, i.role) for i in state.bone_roles] == [(renamed[b], named[b], named[b]) for b in original]
     log = draw_panel(bpy.types.MYOSKIN_PT_bone_roles).log
     labels = " ".join(t for k, t in log if k == "label")
-    assert "Limb: Bone .. Bone.003" in labels and "0 override(s)" in labels, labels
-    assert log.count(("prop", "role")) == len(renamed), log
+    assert "Limb: Bone.001 .. Bone.002" in labels and "0 override(s)" in labels, labels
+    assert log.count(("prop", "role")) == 3, log  # the shoulder and the two limb bones; the hand is under Ignored
     assert ("operator", "myoskin.detect_bone_roles") in log and ("operator", "myoskin.reset_bone_roles") in log
 
 
