@@ -164,6 +164,10 @@ struct ExtractionOptions {
                                                // and the muscles scaled back, so the same character in mm, cm, m or
                                                // exported x100 / x0.01 gives the same muscles. 0 = kReferenceLimbRadius;
                                                // < 0 = analyse in the file's own units
+  int minBumpCrossings = 3;                    // a bump must contain at least this many points where its section
+                                               // crosses mesh edges: a narrower one is the mesh's own faceting (a
+                                               // low-poly limb's corners stand out like bellies), not relief the
+                                               // mesh resolves. 0 = off
   double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones are kept)
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
 };

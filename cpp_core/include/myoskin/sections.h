@@ -105,6 +105,9 @@ struct SectionProfile {
   Points2 polygon;          // #P by 2, counter-clockwise; empty when skipped
   std::vector<char> inMask;  // #P: the point lies on masked skin (all 1 without a mask)
   std::vector<char> onSkin;  // #P: 1 on the skin, 0 on the chord that closes a clipped profile (empty = all 1)
+  std::vector<int> segment;  // #P: the segment of the cut loop each sample lies on; the loop's points are where the
+                             // plane crosses mesh edges, so they tell how finely the mesh resolves an arc
+  int loopPoints = 0;        // points of the cut loop (segment indices run over [0, loopPoints))
   double perimeter = 0.0;   // metres
   bool symmetric = false;   // made exactly mirror-symmetric (ProfileOptions::mirrorTolerance): about the plane's y
                             // axis (trunk), or with its mirrored twin on the other side (limbs)

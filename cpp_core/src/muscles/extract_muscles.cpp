@@ -293,6 +293,15 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
                                      }
                                    }),
                     bumps.end());
+      if (options.minBumpCrossings > 0 && prof.loopPoints > 0 &&
+          static_cast<int>(prof.segment.size()) == prof.polygon.rows())  // resolved by the mesh
+        bumps.erase(std::remove_if(bumps.begin(), bumps.end(),
+                                   [&](const Bump& b) {
+                                     const int crossings =
+                                         (prof.segment[b.last] - prof.segment[b.first] + prof.loopPoints) % prof.loopPoints;
+                                     return crossings < options.minBumpCrossings;
+                                   }),
+                    bumps.end());
       if (!options.vertexMask.empty())  // extract only within the mask: the bump's apex must lie on it
         bumps.erase(std::remove_if(bumps.begin(), bumps.end(), [&](const Bump& b) { return !prof.inMask[b.apex]; }),
                     bumps.end());

@@ -257,6 +257,8 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
   if (plane.mirrorAxis && o.samples <= 0) count += count % 2;  // the -Y crossing is then a sample too
   std::vector<int> source;
   prof.polygon = resample(loop.points, count, source);
+  prof.segment = source;
+  prof.loopPoints = static_cast<int>(loop.points.size());
   const bool trunkClipped = plane.mirrorAxis && !skin.empty();
   if (plane.mirrorAxis && count % 2 == 0 && o.mirrorTolerance > 0) {
     // Sample k mirrors sample count - k (both start on the +Y axis and run the same arc length): when every pair
