@@ -323,3 +323,76 @@ TEST(AnyCharacter, LowPolyFacetingIsNotRelief) {
   EXPECT_EQ(fineOn, fineOff);
   EXPECT_GE(fineOn, 16u);
 }
+
+// ============================================================================
+// Odd rigs and skins: a clear outcome, never a crash
+// ============================================================================
+
+TEST(AnyCharacter, OddRigsAndSkinsGiveAClearOutcome) {
+  const SyntheticCharacter arm = makeSyntheticArm();
+  // An armature of one bone carrying the whole skin: it is a limb by the tree; the arm's relief is still found.
+  Character one = arm.character;
+  one.skeleton.bones.resize(1);
+  one.skeleton.bones[0].name = "Bone";
+  one.skeleton.bones[0].tail = arm.character.skeleton.bones.back().tail;
+  one.skeleton.bones[0].rest = boneMatrix(one.skeleton.bones[0].head, one.skeleton.bones[0].tail,
+                                          arm.character.skeleton.bones[0].rest.block<3, 1>(0, 0));
+  one.weights.joints.setConstant(-1);
+  one.weights.weights.setZero();
+  one.weights.joints.col(0).setZero();
+  one.weights.weights.col(0).setOnes();
+  const ExtractionResult r1 = extractMuscles(one);
+  EXPECT_EQ(characterBoneRoles(one)[0], BoneRole::Limb);
+  EXPECT_TRUE(r1.report.analysed);
+  EXPECT_FALSE(r1.muscles.empty());
+  // A skin with no weights (not deformed by the armature): roles from the tree alone, the limb radius from the skin.
+  Character unweighted = arm.character;
+  unweighted.weights = SkinWeights{};
+  const ExtractionResult r2 = extractMuscles(unweighted);
+  EXPECT_GT(r2.report.limbRadius, 0.0);
+  EXPECT_TRUE(r2.muscles.empty() != r2.report.diagnosis.empty()) << r2.report.diagnosis;
+  // Pieces that do not meet: the forearm's skin moved 5 cm off the upper arm's. Both pieces are analysed (neither is
+  // small nor rigid); whatever cannot be sectioned is skipped with a reason.
+  Character apart = arm.character;
+  const int forearm = apart.skeleton.find("forearm");
+  ASSERT_GE(forearm, 0);
+  const Vec3 elbow = apart.skeleton.bones[forearm].head, along = (apart.skeleton.bones[forearm].tail - elbow).normalized();
+  // Triangles past the elbow get their own copies of their vertices (moved), so the skin is two closed-off pieces.
+  const Eigen::Index nv = apart.mesh.vertices.rows();
+  std::vector<int> copy(nv, -1);
+  std::vector<Vec3> extra;
+  std::vector<int> extraOf;
+  for (Eigen::Index f = 0; f < apart.mesh.triangles.rows(); ++f) {
+    Vec3 centroid = Vec3::Zero();
+    for (int c = 0; c < 3; ++c) centroid += apart.mesh.vertices.row(apart.mesh.triangles(f, c)).transpose() / 3.0;
+    if ((centroid - elbow).dot(along) <= 0) continue;
+    for (int c = 0; c < 3; ++c) {
+      const int v = apart.mesh.triangles(f, c);
+      if (copy[v] < 0) {
+        copy[v] = static_cast<int>(nv + extra.size());
+        extra.push_back(apart.mesh.vertices.row(v).transpose() + 0.05 * along);
+        extraOf.push_back(v);
+      }
+      apart.mesh.triangles(f, c) = copy[v];
+    }
+  }
+  ASSERT_FALSE(extra.empty());
+  apart.mesh.vertices.conservativeResize(nv + static_cast<Eigen::Index>(extra.size()), 3);
+  apart.weights.joints.conservativeResize(apart.mesh.vertices.rows(), Eigen::NoChange);
+  apart.weights.weights.conservativeResize(apart.mesh.vertices.rows(), Eigen::NoChange);
+  for (size_t k = 0; k < extra.size(); ++k) {
+    apart.mesh.vertices.row(nv + k) = extra[k].transpose();
+    apart.weights.joints.row(nv + k) = apart.weights.joints.row(extraOf[k]);
+    apart.weights.weights.row(nv + k) = apart.weights.weights.row(extraOf[k]);
+  }
+  apart.sourceToWelded.clear();
+  EXPECT_EQ(analyzeTopology(apart.mesh).components, 2);
+  const ExtractionResult r3 = extractMuscles(apart);
+  EXPECT_TRUE(r3.report.analysed);
+  EXPECT_TRUE(r3.report.excluded.empty());  // both pieces are body surface
+  std::printf("one bone: %zu muscles; unweighted skin: %zu (%s); forearm apart: %zu muscles, %zu of %d sections "
+              "skipped\n", r1.muscles.size(), r2.muscles.size(), r2.report.diagnosis.c_str(), r3.muscles.size(),
+              r3.report.skipped.size(), r3.report.planes);
+  for (const SkippedSection& s : r3.report.skipped) EXPECT_FALSE(s.reason.empty());
+  EXPECT_TRUE(r3.muscles.empty() != r3.report.diagnosis.empty()) << r3.report.diagnosis;
+}
