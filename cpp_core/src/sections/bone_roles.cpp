@@ -376,8 +376,10 @@ namespace {
 // Bone tails from the joints, so that extraction does not depend on how an importer guessed them (Blender's glTF
 // importer: along the joint's Y axis in 4.x/5.x, along the joint axis nearest the children in 3.4, as long as the
 // nearest child or 0.004 armature units; the CLI's loader: at the child along Y). A bone ends at its continuing
-// child's head: the child best aligned with its given direction, within 30 degrees, or its only child elsewhere. A bone
-// with none keeps its direction, and when it is shorter than a tenth of its parent it takes the parent's length.
+// child's head: the child best aligned with its given direction, within 30 degrees, or its only child elsewhere; a
+// bone whose children spread one way (a hand or foot) points at their mean, as far as the farthest along it. Any
+// other bone (a leaf, or a hub with children all round) keeps its direction, and when it is shorter than a tenth of
+// its parent it takes the parent's length.
 // The rest matrix follows with the given roll (the given X axis, made perpendicular).
 void tailsFromJoints(Skeleton& sk) {
   const int n = sk.numBones();
@@ -400,9 +402,17 @@ void tailsFromJoints(Skeleton& sk) {
       if (cosine >= best) pick = c, best = cosine;
     }
     if (pick < 0 && elsewhere == 1) pick = only;
-    Vec3 tail = b.tail;
+    Vec3 tail = b.tail, mean = Vec3::Zero();
+    double reach = 0.0, spread = 0.0;
+    for (int c : sk.children(i))
+      if ((sk.bones[c].head - b.head).norm() > same) mean += (sk.bones[c].head - b.head) / elsewhere;
+    for (int c : sk.children(i))
+      if ((sk.bones[c].head - b.head).norm() > same) spread += (sk.bones[c].head - b.head).norm() / elsewhere;
     if (pick >= 0) {
       tail = sk.bones[pick].head;
+    } else if (elsewhere > 1 && mean.norm() >= 0.5 * spread) {  // a hand or foot: towards its fingers or toes
+      for (int c : sk.children(i)) reach = std::max(reach, (sk.bones[c].head - b.head).dot(mean.normalized()));
+      tail = b.head + reach * mean.normalized();
     } else if (hasDirection && b.parent >= 0 && given.norm() < 0.1 * sk.bones[b.parent].length()) {
       tail = b.head + given.normalized() * sk.bones[b.parent].length();
     }
