@@ -77,7 +77,9 @@ void usage(std::ostream& out) {
          "          [--max-per-region N] [--min-evidence E] [--no-surfaces] [--mesh NAME] [--roles ROLES.json]\n"
          "          extract muscles from the skin (the whole character: every mesh its skin deforms, or --mesh)\n"
          "  deform CHARACTER [--muscles M.json] --pose P.json -o out.obj|out.pc2 [--dominance D] [--threads N]\n"
-         "          skin a pose (.obj) or a sequence of poses (.pc2, Blender's Mesh Cache modifier); pose\n"
+         "          [--preserve-volume]\n"
+         "          skin a pose (.obj) or a sequence of poses (.pc2, Blender's Mesh Cache modifier);\n"
+         "          --preserve-volume blends the joints as dual quaternions (Blender's Preserve Volume); pose\n"
          "          files: {\"bones\": {name: {\"rotation_quaternion\": [w,x,y,z]}}} or {\"frames\": [...]}\n"
          "CHARACTER is a .glb/.gltf, or an .obj with a <name>.skeleton.json beside it. ROLES.json: {\"bone\": \"role\"}.\n";
 }
@@ -274,6 +276,9 @@ int cmdDeform(const Args& args) {
   SkinnerOptions so;
   so.threads = static_cast<int>(numberOption(args, "--threads", 0));
   if (so.threads < 0) throw InputError("--threads must be >= 0 (0 = all cores)");
+  for (const std::string& f : args.flags)  // a mistyped mode must not fall back to linear skinning silently
+    if (f != "--preserve-volume") throw InputError("deform: unknown option '" + f + "'");
+  so.preserveVolume = !args.flags.empty();
   // With muscles: combined weights over bones + muscle joints (Equation 3); without: plain LBS.
   std::unique_ptr<MuscleRig> rig;
   SkinWeights weights = c.weights;
@@ -286,6 +291,13 @@ int cmdDeform(const Args& args) {
     throw InputError("deform: --dominance needs --muscles");
   }
   const int numJoints = c.skeleton.numBones() + (rig ? rig->numJoints() : 0);
+  if (so.preserveVolume) {
+    if (rig) {
+      so.jointRest = combinedRestMatrices(c.skeleton, *rig);
+    } else {
+      for (const auto& b : c.skeleton.bones) so.jointRest.push_back(b.rest);
+    }
+  }
   const Skinner skinner(c.mesh.vertices, weights, numJoints, so);
   MuscleRigState state;
   if (rig) state = rig->makeState();
@@ -313,13 +325,14 @@ int cmdDeform(const Args& args) {
     skinner.deform(transforms, positions);
     writeObj(out, positions, c.mesh.triangles);
   }
+  const char* mode = so.preserveVolume ? ", preserve volume" : "";
   if (rig)
-    std::printf("deformed %s (%d vertices, %d bones + %d muscle joints of %d muscles): %zu frame(s) -> %s\n",
+    std::printf("deformed %s (%d vertices, %d bones + %d muscle joints of %d muscles%s): %zu frame(s) -> %s\n",
                 c.name.c_str(), c.mesh.numVertices(), c.skeleton.numBones(), rig->numJoints(), rig->numMuscles(),
-                poses.frames.size(), out.c_str());
+                mode, poses.frames.size(), out.c_str());
   else
-    std::printf("deformed %s (%d vertices, %d bones, skeleton weights only): %zu frame(s) -> %s\n", c.name.c_str(),
-                c.mesh.numVertices(), c.skeleton.numBones(), poses.frames.size(), out.c_str());
+    std::printf("deformed %s (%d vertices, %d bones, skeleton weights only%s): %zu frame(s) -> %s\n",
+                c.name.c_str(), c.mesh.numVertices(), c.skeleton.numBones(), mode, poses.frames.size(), out.c_str());
   return 0;
 }
 
