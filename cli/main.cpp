@@ -77,9 +77,10 @@ void usage(std::ostream& out) {
          "          [--max-per-region N] [--min-evidence E] [--no-surfaces] [--mesh NAME] [--roles ROLES.json]\n"
          "          extract muscles from the skin (the whole character: every mesh its skin deforms, or --mesh)\n"
          "  deform CHARACTER [--muscles M.json] --pose P.json -o out.obj|out.pc2 [--dominance D] [--threads N]\n"
-         "          [--preserve-volume]\n"
+         "          [--preserve-volume [--dq-scale pivot|blended]]\n"
          "          skin a pose (.obj) or a sequence of poses (.pc2, Blender's Mesh Cache modifier);\n"
-         "          --preserve-volume blends the joints as dual quaternions (Blender's Preserve Volume); pose\n"
+         "          --preserve-volume blends the joints as dual quaternions (Blender's Preserve Volume; scaled\n"
+         "          joints as Blender 4.x/5.x do, or --dq-scale blended as Blender 3.x); pose\n"
          "          files: {\"bones\": {name: {\"rotation_quaternion\": [w,x,y,z]}}} or {\"frames\": [...]}\n"
          "CHARACTER is a .glb/.gltf, or an .obj with a <name>.skeleton.json beside it. ROLES.json: {\"bone\": \"role\"}.\n";
 }
@@ -279,6 +280,14 @@ int cmdDeform(const Args& args) {
   for (const std::string& f : args.flags)  // a mistyped mode must not fall back to linear skinning silently
     if (f != "--preserve-volume") throw InputError("deform: unknown option '" + f + "'");
   so.preserveVolume = !args.flags.empty();
+  if (args.options.count("--dq-scale")) {
+    const std::string mode = args.options.at("--dq-scale");
+    if (!so.preserveVolume) throw InputError("deform: --dq-scale needs --preserve-volume");
+    if (mode == "blended")
+      so.dualQuatScale = DualQuatScale::Blended;
+    else if (mode != "pivot")
+      throw InputError("--dq-scale must be pivot (Blender 4.x/5.x) or blended (Blender 3.x), got '" + mode + "'");
+  }
   // With muscles: combined weights over bones + muscle joints (Equation 3); without: plain LBS.
   std::unique_ptr<MuscleRig> rig;
   SkinWeights weights = c.weights;
@@ -354,7 +363,7 @@ int main(int argc, char** argv) {
                                "--min-evidence", "--mesh", "--roles"}));
     if (command == "deform")
       return cmdDeform(
-          parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh"}));
+          parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh", "--dq-scale"}));
     std::fprintf(stderr, "myoskin: error: unknown command '%s' (try myoskin --help)\n", command.c_str());
     return 2;
   } catch (const InputError& e) {

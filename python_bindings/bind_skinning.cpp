@@ -65,9 +65,15 @@ SkinWeights weightsArg(const IntArray& joints, const DoubleArray& weights, Eigen
 
 // Skinner options from the Python arguments; rest_matrices (None or #J by 4 by 4) only with preserve_volume.
 SkinnerOptions skinnerOptions(int grainSize, int threads, double sumTolerance, bool preserveVolume,
-                              const py::object& restMatrices) {
+                              const py::object& restMatrices, const std::string& dqScale) {
   SkinnerOptions o{grainSize, threads, sumTolerance};
   o.preserveVolume = preserveVolume;
+  if (dqScale == "pivot")
+    o.dualQuatScale = DualQuatScale::Pivot;
+  else if (dqScale == "blended")
+    o.dualQuatScale = DualQuatScale::Blended;
+  else
+    throw InputError("dq_scale must be 'pivot' (Blender 4.x/5.x) or 'blended' (Blender 3.x), got '" + dqScale + "'");
   if (!restMatrices.is_none()) {
     if (!preserveVolume) throw InputError("rest_matrices are only used with preserve_volume=True");
     o.jointRest = matricesFromArray(restMatrices.cast<DoubleArray>(), "rest_matrices");
@@ -89,22 +95,24 @@ void bindSkinning(py::module_& m) {
       "semantics: normalised at deform time, weight sum <= 1e-4 stays at rest); deform() per frame.")
       .def(py::init([](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, int numJoints,
                        int grainSize, int threads, double sumTolerance, bool preserveVolume,
-                       const py::object& restMatrices) {
+                       const py::object& restMatrices, const std::string& dqScale) {
              const Points p = pointsArg(rest, "rest_vertices");
              const SkinWeights w = weightsArg(joints, weights, p.rows());
-             const SkinnerOptions o = skinnerOptions(grainSize, threads, sumTolerance, preserveVolume, restMatrices);
+             const SkinnerOptions o =
+                 skinnerOptions(grainSize, threads, sumTolerance, preserveVolume, restMatrices, dqScale);
              py::gil_scoped_release release;
              return std::make_shared<Skinner>(p, w, numJoints, o);
            }),
            py::arg("rest_vertices"), py::arg("weight_joints"), py::arg("weight_values"), py::arg("num_joints"),
            py::arg("grain_size") = SkinnerOptions{}.grainSize, py::arg("threads") = SkinnerOptions{}.threads,
            py::arg("sum_tolerance") = SkinnerOptions{}.sumTolerance, py::kw_only(),
-           py::arg("preserve_volume") = false, py::arg("rest_matrices") = py::none(),
+           py::arg("preserve_volume") = false, py::arg("rest_matrices") = py::none(), py::arg("dq_scale") = "pivot",
            "rest_vertices #V by 3, weight_joints/weight_values #V by K (joint -1 = empty slot) over num_joints "
            "combined joints. sum_tolerance > 0 requires every row to sum to 1 (else rows are normalised, like "
            "Blender). preserve_volume=True blends dual quaternions as Blender's Armature modifier does with "
            "Preserve Volume; rest_matrices (#J by 4 by 4, the joints' rest matrices: combined_rest_matrices) "
-           "are needed for Blender's result on joints with scale. ValueError names the offending vertex and slot.")
+           "are needed for Blender's result on joints with scale, and dq_scale says which Blender's scale handling: "
+           "'pivot' (4.x, 5.x) or 'blended' (3.x). ValueError names the offending vertex and slot.")
       .def(
           "deform",
           [](const Skinner& s, const DoubleArray& transforms) {
@@ -148,19 +156,20 @@ void bindSkinning(py::module_& m) {
   m.def(
       "skin",
       [](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, const DoubleArray& transforms,
-         bool preserveVolume, const py::object& restMatrices) {
+         bool preserveVolume, const py::object& restMatrices, const std::string& dqScale) {
         const Points p = pointsArg(rest, "rest_vertices");
         const SkinWeights w = weightsArg(joints, weights, p.rows());
         const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
-        const SkinnerOptions o =
-            skinnerOptions(SkinnerOptions{}.grainSize, SkinnerOptions{}.threads, 0.0, preserveVolume, restMatrices);
+        const SkinnerOptions o = skinnerOptions(SkinnerOptions{}.grainSize, SkinnerOptions{}.threads, 0.0,
+                                                preserveVolume, restMatrices, dqScale);
         py::gil_scoped_release release;
         return skin(p, w, t, o);
       },
       py::arg("rest_vertices"), py::arg("weight_joints"), py::arg("weight_values"), py::arg("transforms"),
       py::kw_only(), py::arg("preserve_volume") = false, py::arg("rest_matrices") = py::none(),
+      py::arg("dq_scale") = "pivot",
       "One-shot Equation 3 (or, preserve_volume=True, Blender's dual quaternion blend with the joints' "
-      "rest_matrices): #V by 3 float64 positions for #J by 4 by 4 skinning transforms.");
+      "rest_matrices and dq_scale 'pivot' | 'blended'): #V by 3 float64 positions for #J by 4 by 4 skinning transforms.");
 
   m.def(
       "combined_rest_matrices",

@@ -127,6 +127,8 @@ def test_bad_preserve_volume_arguments_raise_value_errors(core, arm):
     with pytest.raises(ValueError):
         core.Skinner(*args, preserve_volume=True, rest_matrices=np.eye(3))
     skinner = core.Skinner(*args, preserve_volume=True)
+    with pytest.raises(ValueError, match="dq_scale must be"):
+        core.Skinner(*args, preserve_volume=True, dq_scale="legacy")
     with pytest.raises(ValueError, match="transforms for"):
         skinner.deform(np.tile(np.eye(4), (arm.num_bones + 1, 1, 1)))
 
@@ -158,6 +160,19 @@ def test_cli_deform_preserve_volume_matches_the_module(core, tmp_path):
         assert np.abs(frames[0] - character.vertices).max() < 1e-6
         assert np.abs(frames[1] - expected).max() < 1e-5
         assert np.abs(frames[1] - core.skin(character.vertices, joints, weights, t)).max() > 1e-3
+    # Blender 3.x's scale handling: the muscle joints scale, so the two modes differ at 120 degrees
+    r = run_cli("deform", str(tmp_path / "arm.obj"), "--muscles", str(tmp_path / "m.json"), "--pose",
+                str(tmp_path / "seq.json"), "-o", str(tmp_path / "b.pc2"), "--preserve-volume", "--dq-scale", "blended")
+    assert r.returncode == 0, r.stderr
+    blended = core.read_pc2(str(tmp_path / "b.pc2"))["frames"][1]
+    expected = core.skin(character.vertices, joints, weights, t, preserve_volume=True, rest_matrices=rest,
+                         dq_scale="blended")
+    assert np.abs(blended - expected).max() < 1e-5 and np.abs(blended - frames[1]).max() > 1e-4
+    for bad, message in [(["--dq-scale", "blended"], "--dq-scale needs --preserve-volume"),
+                         (["--preserve-volume", "--dq-scale", "x"], "--dq-scale must be")]:
+        r = run_cli("deform", str(tmp_path / "arm.obj"), "--pose", str(tmp_path / "seq.json"), "-o",
+                    str(tmp_path / "out.pc2"), *bad)
+        assert r.returncode == 1 and message in r.stderr, r.stderr
     r = run_cli("deform", str(tmp_path / "arm.obj"), "--pose", str(tmp_path / "seq.json"), "-o",
                 str(tmp_path / "out.pc2"), "--preserve-volum")
     assert r.returncode == 1 and "unknown option '--preserve-volum'" in r.stderr and r.stderr.count("\n") == 1

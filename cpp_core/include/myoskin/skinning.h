@@ -92,6 +92,14 @@ void skeletonTransforms(const Skeleton& skeleton, const Pose& pose, std::vector<
 // The skinner: built once from rest vertices + sparse weights, then deform(transforms) per frame
 // ============================================================================
 
+// How the preserve-volume mode carries a joint's scale (Blender changed it between versions; measured: 3.4.1
+// blends, 4.5 and 5.2 pivot):
+//   Pivot   (Blender 4.x, 5.x: add_weighted_dq_dq_pivot) each joint's scale becomes the translation it causes at
+//           the vertex, so every joint alone still carries the vertex to its linear position;
+//   Blended (Blender 3.x: add_weighted_dq_dq) the joints' scale matrices are blended linearly (joints without
+//           scale count as the identity) and applied before the blended rigid motion.
+enum class DualQuatScale { Pivot, Blended };
+
 struct SkinnerOptions {
   int grainSize = 2048;  // vertices per parallel task (TBB parallel_for grain)
   int threads = 0;       // worker threads; 0 = all cores
@@ -101,9 +109,10 @@ struct SkinnerOptions {
   // Blender's "Preserve Volume" (the Armature modifier's use_deform_preserve_volume): blend each vertex's
   // joint transforms as dual quaternions instead of matrices, the way Blender does (mat4_to_dquat splits each
   // joint's scale from its rotation in the joint's own rest frame, orthogonalising about the bone's Y axis;
-  // add_weighted_dq_dq_pivot turns the scale into the translation it causes at the vertex, so every joint
-  // still carries the vertex to its linear position; normalize_dq, mul_v3m3_dq), in float32. Rest pose exact.
+  // add_weighted_dq_dq(_pivot) with the scale as dualQuatScale says; normalize_dq, mul_v3m3_dq), in float32.
+  // Rest pose exact.
   bool preserveVolume = false;
+  DualQuatScale dualQuatScale = DualQuatScale::Pivot;  // preserveVolume only: which Blender's scale handling
   // preserveVolume only: each joint's rest matrix M_d (Blender's Bone.matrix_local; combinedRestMatrices),
   // numJoints of them, or empty = identity. Only joints with scale or shear depend on it (the frame in which
   // scale is split from rotation), so rigid transforms give the same result either way.

@@ -275,23 +275,32 @@ std::vector<JointDQ> packDualQuats(const std::vector<Mat4>& transforms, const Sk
   return dq;
 }
 
-// Per vertex: add_weighted_dq_dq_pivot over its influences (pivot = the rest position, scale matrix
-// discarded after its translation at the pivot is taken into the dual part), then mul_v3m3_dq. The
-// weights are normalised at build time, which is normalize_dq's division by the weight sum.
+// Per vertex: add_weighted_dq_dq_pivot (Pivot: pivot = the rest position, the scale matrix discarded after
+// its translation at the pivot is taken into the dual part) or add_weighted_dq_dq (Blended: scale matrices
+// summed with unflipped weights) over its influences, normalize_dq (weights normalised at build time; the
+// joints without scale make up the identity's share), then mul_v3m3_dq.
+template <bool Blended>
 void skinRangeDualQuat(const Skinner::Impl& s, const JointDQ* D, int begin, int end, float* out) {
   const int k = s.slots;
   for (int v = begin; v < end; ++v) {
     const uint16_t* jv = s.joint.data() + static_cast<size_t>(v) * k;
     const float* wv = s.weight.data() + static_cast<size_t>(v) * k;
-    const float co[3] = {s.x[v], s.y[v], s.z[v]};
+    float co[3] = {s.x[v], s.y[v], s.z[v]};
     float sq[4] = {0.0f, 0.0f, 0.0f, 0.0f}, st[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    float sm[12] = {}, scaleWeight = 0.0f, total = 0.0f;
     for (int i = 0; i < k; ++i) {
       float w = wv[i];
       if (w == 0.0f) continue;
+      total += w;
       const JointDQ& d = D[jv[i]];
       const float* q = d.quat;
       float tr[4] = {d.trans[0], d.trans[1], d.trans[2], d.trans[3]};
-      if (d.hasScale != 0.0f) {
+      if (Blended) {
+        if (d.hasScale != 0.0f) {
+          for (int e = 0; e < 12; ++e) sm[e] += w * d.scale[e];
+          scaleWeight += w;
+        }
+      } else if (d.hasScale != 0.0f) {
         const float* m = d.scale;
         float dst[3];
         for (int r = 0; r < 3; ++r) dst[r] = m[r] * co[0] + m[3 + r] * co[1] + m[6 + r] * co[2] + m[9 + r] - co[r];
@@ -305,6 +314,17 @@ void skinRangeDualQuat(const Skinner::Impl& s, const JointDQ* D, int begin, int 
         sq[c] += w * q[c];
         st[c] += w * tr[c];
       }
+    }
+    if (Blended && scaleWeight != 0.0f) {  // normalize_dq's scale, then applied before the rotation
+      const float add = total - scaleWeight, inv = 1.0f / total;
+      sm[0] += add;
+      sm[4] += add;
+      sm[8] += add;
+      float r[3];
+      for (int c = 0; c < 3; ++c) r[c] = (sm[c] * co[0] + sm[3 + c] * co[1] + sm[6 + c] * co[2] + sm[9 + c]) * inv;
+      co[0] = r[0];
+      co[1] = r[1];
+      co[2] = r[2];
     }
     const float w = sq[0], x = sq[1], y = sq[2], z = sq[3];
     const float t0 = st[0], t1 = st[1], t2 = st[2], t3 = st[3];
@@ -345,7 +365,10 @@ void deformInto(const Skinner::Impl& s, const std::vector<Mat4>& transforms, flo
   std::shared_lock<std::shared_mutex> lock(s.optionsMutex);
   if (s.options.preserveVolume) {
     const std::vector<JointDQ> D = packDualQuats(transforms, s);
-    parallelRanges(s, [&](int begin, int end) { skinRangeDualQuat(s, D.data(), begin, end, out); });
+    if (s.options.dualQuatScale == DualQuatScale::Blended)
+      parallelRanges(s, [&](int begin, int end) { skinRangeDualQuat<true>(s, D.data(), begin, end, out); });
+    else
+      parallelRanges(s, [&](int begin, int end) { skinRangeDualQuat<false>(s, D.data(), begin, end, out); });
     return;
   }
   const std::vector<PackedTransform> T = packTransforms(transforms, s.numJoints);
