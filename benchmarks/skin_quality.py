@@ -1,5 +1,7 @@
 """Skin quality at bent joints through the core: band volume change and muscle bulge for plain linear blend
-skinning (LBS), dual quaternions (DQS) and Myoskin (Equation 3 with the extracted muscles).
+skinning (LBS), dual quaternions (DQS), Myoskin (Equation 3 with the extracted muscles) and Myoskin with
+Preserve Volume (the core's preserve-volume skinner, Blender's dual quaternion blend, on the same hybrid
+weights and transforms, muscle joints included).
 
 - band: the skin within 1.5 limb radii of the joint; its volume is the cone volume of its triangles from the
   joint's posed position (rigid motion of either side keeps it), reported as the change from rest;
@@ -113,7 +115,9 @@ def band_volume_change(rest, posed, triangles, joint_rest, joint_posed, radius):
 
 
 def measure(core, character, muscles, joints, hybrid_options=None):
-    """Per joint: dict(label, lbs, dqs, myoskin band changes, bulge (m), limb_radius)."""
+    """Per joint: dict(label, lbs, dqs, blender_dqs, myoskin, myoskin_pv band changes, bulge and bulge_pv
+    (m, over LBS), bulge_pv_over_dqs (m, over blender_dqs), limb_radius). blender_dqs is the core's preserve-volume skinner on the skeleton weights
+    (Blender's DQS, a cross-check of the numpy dqs); myoskin_pv the same skinner on the hybrid weights."""
     limb_radius = None
     rig = core.MuscleRig(character, muscles)
     hj, hw = core.hybrid_weights(character, rig, **(hybrid_options or {}))
@@ -124,6 +128,8 @@ def measure(core, character, muscles, joints, hybrid_options=None):
     heads = np.asarray(character.bone_heads)
     _, report = core.extract_muscles(character, build_surfaces=False) if limb_radius is None else (None, None)
     limb_radius = report["limb_radius"]
+    bone_rest = np.asarray(character.bone_rest)
+    combined_rest = core.combined_rest_matrices(character, rig)
     rows = []
     for label, bone, hinge, upper, direction, degrees in joints:
         if bone not in names:
@@ -135,15 +141,24 @@ def measure(core, character, muscles, joints, hybrid_options=None):
         state = rig.evaluate(pose)
         full = core.skinning_transforms(character, pose, rig, state["joint_matrices"])
         myo = np.asarray(core.skin(rest, hj, hw, full), float)
+        blender_dq = np.asarray(core.skin(rest, sj, sw, skel, preserve_volume=True, rest_matrices=bone_rest), float)
+        myo_pv = np.asarray(core.skin(rest, hj, hw, full, preserve_volume=True, rest_matrices=combined_rest), float)
         b = names.index(bone)
         joint_rest = heads[b]
         joint_posed = pose[b][:3, 3]
         band = {k: band_volume_change(rest, v, tris, joint_rest, joint_posed, 1.5 * limb_radius)
-                for k, v in (("lbs", lbs), ("dqs", dq), ("myoskin", myo))}
+                for k, v in (("lbs", lbs), ("dqs", dq), ("blender_dqs", blender_dq), ("myoskin", myo),
+                             ("myoskin_pv", myo_pv))}
         upper_ids = [names.index(u) for u in upper if u in names]
         dominant = sj[np.arange(len(sj)), np.argmax(sw, axis=1)]
         on_upper = np.isin(dominant, upper_ids)
         normals = np.asarray(core.vertex_normals(lbs, tris))
-        bulge = float(((myo - lbs) * normals).sum(1)[on_upper].max()) if on_upper.any() else float("nan")
-        rows.append(dict(label=label, bulge=bulge, limb_radius=limb_radius, **band))
+        def bulge_of(skin, base=lbs, base_normals=normals):
+            return float(((skin - base) * base_normals).sum(1)[on_upper].max()) if on_upper.any() else float("nan")
+
+        # With preserve volume the skin moves off LBS without muscles too (the DQS blend): the muscles' own
+        # bulge in that mode is measured over the skeleton-only DQS skin.
+        dq_normals = np.asarray(core.vertex_normals(blender_dq, tris))
+        rows.append(dict(label=label, bulge=bulge_of(myo), bulge_pv=bulge_of(myo_pv),
+                         bulge_pv_over_dqs=bulge_of(myo_pv, blender_dq, dq_normals), limb_radius=limb_radius, **band))
     return rows

@@ -77,7 +77,10 @@ void usage(std::ostream& out) {
          "          [--max-per-region N] [--min-evidence E] [--no-surfaces] [--mesh NAME] [--roles ROLES.json]\n"
          "          extract muscles from the skin (the whole character: every mesh its skin deforms, or --mesh)\n"
          "  deform CHARACTER [--muscles M.json] --pose P.json -o out.obj|out.pc2 [--dominance D] [--threads N]\n"
-         "          skin a pose (.obj) or a sequence of poses (.pc2, Blender's Mesh Cache modifier); pose\n"
+         "          [--preserve-volume [--dq-scale pivot|blended]]\n"
+         "          skin a pose (.obj) or a sequence of poses (.pc2, Blender's Mesh Cache modifier);\n"
+         "          --preserve-volume blends the joints as dual quaternions (Blender's Preserve Volume; scaled\n"
+         "          joints as Blender 4.x/5.x do, or --dq-scale blended as Blender 3.x); pose\n"
          "          files: {\"bones\": {name: {\"rotation_quaternion\": [w,x,y,z]}}} or {\"frames\": [...]}\n"
          "CHARACTER is a .glb/.gltf, or an .obj with a <name>.skeleton.json beside it. ROLES.json: {\"bone\": \"role\"}.\n";
 }
@@ -274,6 +277,17 @@ int cmdDeform(const Args& args) {
   SkinnerOptions so;
   so.threads = static_cast<int>(numberOption(args, "--threads", 0));
   if (so.threads < 0) throw InputError("--threads must be >= 0 (0 = all cores)");
+  for (const std::string& f : args.flags)  // a mistyped mode must not fall back to linear skinning silently
+    if (f != "--preserve-volume") throw InputError("deform: unknown option '" + f + "'");
+  so.preserveVolume = !args.flags.empty();
+  if (args.options.count("--dq-scale")) {
+    const std::string mode = args.options.at("--dq-scale");
+    if (!so.preserveVolume) throw InputError("deform: --dq-scale needs --preserve-volume");
+    if (mode == "blended")
+      so.dualQuatScale = DualQuatScale::Blended;
+    else if (mode != "pivot")
+      throw InputError("--dq-scale must be pivot (Blender 4.x/5.x) or blended (Blender 3.x), got '" + mode + "'");
+  }
   // With muscles: combined weights over bones + muscle joints (Equation 3); without: plain LBS.
   std::unique_ptr<MuscleRig> rig;
   SkinWeights weights = c.weights;
@@ -286,6 +300,13 @@ int cmdDeform(const Args& args) {
     throw InputError("deform: --dominance needs --muscles");
   }
   const int numJoints = c.skeleton.numBones() + (rig ? rig->numJoints() : 0);
+  if (so.preserveVolume) {
+    if (rig) {
+      so.jointRest = combinedRestMatrices(c.skeleton, *rig);
+    } else {
+      for (const auto& b : c.skeleton.bones) so.jointRest.push_back(b.rest);
+    }
+  }
   const Skinner skinner(c.mesh.vertices, weights, numJoints, so);
   MuscleRigState state;
   if (rig) state = rig->makeState();
@@ -313,13 +334,14 @@ int cmdDeform(const Args& args) {
     skinner.deform(transforms, positions);
     writeObj(out, positions, c.mesh.triangles);
   }
+  const char* mode = so.preserveVolume ? ", preserve volume" : "";
   if (rig)
-    std::printf("deformed %s (%d vertices, %d bones + %d muscle joints of %d muscles): %zu frame(s) -> %s\n",
+    std::printf("deformed %s (%d vertices, %d bones + %d muscle joints of %d muscles%s): %zu frame(s) -> %s\n",
                 c.name.c_str(), c.mesh.numVertices(), c.skeleton.numBones(), rig->numJoints(), rig->numMuscles(),
-                poses.frames.size(), out.c_str());
+                mode, poses.frames.size(), out.c_str());
   else
-    std::printf("deformed %s (%d vertices, %d bones, skeleton weights only): %zu frame(s) -> %s\n", c.name.c_str(),
-                c.mesh.numVertices(), c.skeleton.numBones(), poses.frames.size(), out.c_str());
+    std::printf("deformed %s (%d vertices, %d bones, skeleton weights only%s): %zu frame(s) -> %s\n",
+                c.name.c_str(), c.mesh.numVertices(), c.skeleton.numBones(), mode, poses.frames.size(), out.c_str());
   return 0;
 }
 
@@ -341,7 +363,7 @@ int main(int argc, char** argv) {
                                "--min-evidence", "--mesh", "--roles"}));
     if (command == "deform")
       return cmdDeform(
-          parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh"}));
+          parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh", "--dq-scale"}));
     std::fprintf(stderr, "myoskin: error: unknown command '%s' (try myoskin --help)\n", command.c_str());
     return 2;
   } catch (const InputError& e) {

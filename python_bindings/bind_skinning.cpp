@@ -63,6 +63,24 @@ SkinWeights weightsArg(const IntArray& joints, const DoubleArray& weights, Eigen
   return w;
 }
 
+// Skinner options from the Python arguments; rest_matrices (None or #J by 4 by 4) only with preserve_volume.
+SkinnerOptions skinnerOptions(int grainSize, int threads, double sumTolerance, bool preserveVolume,
+                              const py::object& restMatrices, const std::string& dqScale) {
+  SkinnerOptions o{grainSize, threads, sumTolerance};
+  o.preserveVolume = preserveVolume;
+  if (dqScale == "pivot")
+    o.dualQuatScale = DualQuatScale::Pivot;
+  else if (dqScale == "blended")
+    o.dualQuatScale = DualQuatScale::Blended;
+  else
+    throw InputError("dq_scale must be 'pivot' (Blender 4.x/5.x) or 'blended' (Blender 3.x), got '" + dqScale + "'");
+  if (!restMatrices.is_none()) {
+    if (!preserveVolume) throw InputError("rest_matrices are only used with preserve_volume=True");
+    o.jointRest = matricesFromArray(restMatrices.cast<DoubleArray>(), "rest_matrices");
+  }
+  return o;
+}
+
 py::array_t<float> newPointsF(int n) { return py::array_t<float>({static_cast<py::ssize_t>(n), py::ssize_t(3)}); }
 
 }  // namespace
@@ -76,18 +94,25 @@ void bindSkinning(py::module_& m) {
       "Equation 3 skinner built once from rest vertices and sparse weights (Blender's Armature modifier "
       "semantics: normalised at deform time, weight sum <= 1e-4 stays at rest); deform() per frame.")
       .def(py::init([](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, int numJoints,
-                       int grainSize, int threads, double sumTolerance) {
+                       int grainSize, int threads, double sumTolerance, bool preserveVolume,
+                       const py::object& restMatrices, const std::string& dqScale) {
              const Points p = pointsArg(rest, "rest_vertices");
              const SkinWeights w = weightsArg(joints, weights, p.rows());
+             const SkinnerOptions o =
+                 skinnerOptions(grainSize, threads, sumTolerance, preserveVolume, restMatrices, dqScale);
              py::gil_scoped_release release;
-             return std::make_shared<Skinner>(p, w, numJoints, SkinnerOptions{grainSize, threads, sumTolerance});
+             return std::make_shared<Skinner>(p, w, numJoints, o);
            }),
            py::arg("rest_vertices"), py::arg("weight_joints"), py::arg("weight_values"), py::arg("num_joints"),
            py::arg("grain_size") = SkinnerOptions{}.grainSize, py::arg("threads") = SkinnerOptions{}.threads,
-           py::arg("sum_tolerance") = SkinnerOptions{}.sumTolerance,
+           py::arg("sum_tolerance") = SkinnerOptions{}.sumTolerance, py::kw_only(),
+           py::arg("preserve_volume") = false, py::arg("rest_matrices") = py::none(), py::arg("dq_scale") = "pivot",
            "rest_vertices #V by 3, weight_joints/weight_values #V by K (joint -1 = empty slot) over num_joints "
            "combined joints. sum_tolerance > 0 requires every row to sum to 1 (else rows are normalised, like "
-           "Blender). ValueError names the offending vertex and slot.")
+           "Blender). preserve_volume=True blends dual quaternions as Blender's Armature modifier does with "
+           "Preserve Volume; rest_matrices (#J by 4 by 4, the joints' rest matrices: combined_rest_matrices) "
+           "are needed for Blender's result on joints with scale, and dq_scale says which Blender's scale handling: "
+           "'pivot' (4.x, 5.x) or 'blended' (3.x). ValueError names the offending vertex and slot.")
       .def(
           "deform",
           [](const Skinner& s, const DoubleArray& transforms) {
@@ -123,21 +148,46 @@ void bindSkinning(py::module_& m) {
       .def_property(
           "threads", [](const Skinner& s) { return s.options().threads; },
           [](Skinner& s, int t) { SkinnerOptions o = s.options(); o.threads = t; s.setOptions(o); })
+      .def_property_readonly("preserve_volume", [](const Skinner& s) { return s.options().preserveVolume; })
       .def_property(
           "grain_size", [](const Skinner& s) { return s.options().grainSize; },
           [](Skinner& s, int g) { SkinnerOptions o = s.options(); o.grainSize = g; s.setOptions(o); });
 
   m.def(
       "skin",
-      [](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, const DoubleArray& transforms) {
+      [](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, const DoubleArray& transforms,
+         bool preserveVolume, const py::object& restMatrices, const std::string& dqScale) {
         const Points p = pointsArg(rest, "rest_vertices");
         const SkinWeights w = weightsArg(joints, weights, p.rows());
         const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
+        const SkinnerOptions o = skinnerOptions(SkinnerOptions{}.grainSize, SkinnerOptions{}.threads, 0.0,
+                                                preserveVolume, restMatrices, dqScale);
         py::gil_scoped_release release;
-        return skin(p, w, t);
+        return skin(p, w, t, o);
       },
       py::arg("rest_vertices"), py::arg("weight_joints"), py::arg("weight_values"), py::arg("transforms"),
-      "One-shot Equation 3: #V by 3 float64 positions for #J by 4 by 4 skinning transforms.");
+      py::kw_only(), py::arg("preserve_volume") = false, py::arg("rest_matrices") = py::none(),
+      py::arg("dq_scale") = "pivot",
+      "One-shot Equation 3 (or, preserve_volume=True, Blender's dual quaternion blend with the joints' "
+      "rest_matrices and dq_scale 'pivot' | 'blended'): #V by 3 float64 positions for #J by 4 by 4 skinning transforms.");
+
+  m.def(
+      "combined_rest_matrices",
+      [](const Character& c, const py::object& rig) {
+        if (rig.is_none()) {
+          std::vector<Mat4> rest;
+          for (const auto& b : c.skeleton.bones) rest.push_back(b.rest);
+          return matricesToArray(rest);
+        }
+        const PyMuscleRig& r = rig.cast<const PyMuscleRig&>();
+        if (r.skeleton().numBones() != c.skeleton.numBones())
+          throw InputError("combined_rest_matrices: the rig has " + std::to_string(r.skeleton().numBones()) +
+                           " bones, the character " + std::to_string(c.skeleton.numBones()));
+        return matricesToArray(combinedRestMatrices(c.skeleton, r));
+      },
+      py::arg("character"), py::arg("rig") = py::none(),
+      "#B (+ #J) rest matrices of the combined joints: the bones' rest matrices, then the rig's muscle joint "
+      "bind matrices (Skinner's rest_matrices for preserve_volume).");
 
   // ==========================================================================
   // Poses and transforms

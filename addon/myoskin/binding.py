@@ -113,18 +113,23 @@ def bind(context, skins, arm):
         for skin in skins:
             restore_weights(skin)
         raise
-    added = []
+    added, preserve_volume_before = [], {}
     for skin in skins:
-        if armature_modifier(skin, arm) is None:
+        mod = armature_modifier(skin, arm)
+        if mod is None:
             mod = skin.modifiers.new("Armature", 'ARMATURE')
             mod.object = arm
-            mod.use_vertex_groups, mod.use_bone_envelopes, mod.use_deform_preserve_volume = True, False, False
+            mod.use_vertex_groups, mod.use_bone_envelopes = True, False
             added.append(skin.name)
+        else:
+            preserve_volume_before[skin.name] = bool(mod.use_deform_preserve_volume)
+        mod.use_deform_preserve_volume = state.preserve_volume
     surfaces = {m.name: item.surface.name for item in rig_state(arm).muscles
                 for m in muscles if m.name == item.name and item.surface is not None}
     record = {
         "skin": skins[0].name, "added_modifier": skins[0].name in added,
-        "skins": [o.name for o in skins], "added_modifiers": added, "bone_names": names,
+        "skins": [o.name for o in skins], "added_modifiers": added,
+        "preserve_volume_before": preserve_volume_before, "bone_names": names,
         "bone_parents": np.asarray(character.bone_parents).tolist(),
         "bone_heads": np.asarray(character.bone_heads).tolist(),
         "bone_tails": np.asarray(character.bone_tails).tolist(),
@@ -138,6 +143,35 @@ def bind(context, skins, arm):
     context.scene.render.use_lock_interface = True  # handlers run on the render thread during F12
     runtime.forget(arm.name)
     return rig.num_joints
+
+
+def apply_preserve_volume(arm):
+    """Set the Armature modifier of every bound mesh to the rig's Preserve Volume setting (a bound rig
+    follows the setting at once); returns the number of modifiers set."""
+    state = rig_state(arm)
+    if not state.bound:
+        return 0
+    count = 0
+    for skin in rig_skins(arm):
+        mod = armature_modifier(skin, arm)
+        if mod is not None:
+            mod.use_deform_preserve_volume = state.preserve_volume
+            count += 1
+    return count
+
+
+def dq_scale():
+    """How this Blender's Preserve Volume carries bone scale, for the core's skinner (dq_scale=): 'blended'
+    (scale matrices blended, measured on 3.4.1) or 'pivot' (add_weighted_dq_dq_pivot, measured on 4.5 and 5.2).
+    The switch is placed at 4.0; 3.5-4.1 were not measured."""
+    return 'pivot' if bpy.app.version >= (4, 0, 0) else 'blended'
+
+
+def preserve_volume_of(skin, arm):
+    """Whether Blender skins `skin` with Preserve Volume (its Armature modifier's setting; the rig's
+    setting when it has none), the mode the core must use to equal it."""
+    mod = armature_modifier(skin, arm)
+    return bool(mod.use_deform_preserve_volume) if mod is not None else bool(rig_state(arm).preserve_volume)
 
 
 def bound_skins(arm):
@@ -167,11 +201,15 @@ def unbind(arm):
     added = record.get("added_modifiers")
     if added is None:  # a bind record from before several meshes
         added = [record["skin"]] if record.get("added_modifier") and record.get("skin") else []
+    before = record.get("preserve_volume_before", {})
     for skin in skins:
+        mod = armature_modifier(skin, arm)
+        if mod is None:
+            continue
         if skin.name in added:
-            mod = armature_modifier(skin, arm)
-            if mod is not None:
-                skin.modifiers.remove(mod)
+            skin.modifiers.remove(mod)
+        elif skin.name in before:  # a modifier the character had: its Preserve Volume as it was
+            mod.use_deform_preserve_volume = bool(before[skin.name])
     if state.bind_text is not None:
         bpy.data.texts.remove(state.bind_text)
     state.bound, state.dirty = False, False

@@ -10,7 +10,7 @@ they share with live.py are owned by runtime.py; failures are reported through r
   again once the locators have been still for REBIND_DELAY seconds, so the muscle joints follow too
   (bones cannot be re-created from inside a depsgraph handler).
 - property callbacks (state.py dispatches them through runtime): a muscle setting changed, a muscle
-  renamed, Live Update toggled.
+  renamed, Live Update or Preserve Volume toggled.
 - live update: see live.py (registered from there).
 
 Layer: runtime. Imports downward only (binding, core_loader, live, muscle_io, runtime).
@@ -106,8 +106,13 @@ def on_settings_changed(arm_obj, item):
     muscle_io.sync_text(arm_obj)
 
 
+def on_preserve_volume_changed(arm_obj, state):
+    """Preserve Volume toggled: a bound rig's Armature modifiers follow at once (unbound: Bind sets them)."""
+    binding.apply_preserve_volume(arm_obj)
+
+
 CALLBACKS = {"settings_changed": on_settings_changed, "renamed": muscle_io.on_renamed,
-             "live_changed": live.on_live_changed}
+             "live_changed": live.on_live_changed, "preserve_volume_changed": on_preserve_volume_changed}
 
 
 def register():

@@ -27,6 +27,7 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
         .bound, .dirty                    muscle joints are bound to the rig / edited since the bind (a
                                           bulge change is applied to the bound rig at once)
         .live                             live update on (off: the baked Action plays)
+        .preserve_volume                  Bind sets the Armature modifiers' use_deform_preserve_volume to it
         .bind_text                        Text datablock "<armature>.bind.json", the bind record: skeleton
                                           (names, parents, heads, tails, rest), the bound muscles' json,
                                           joint names, surface object names (live update rebuilds from it)
@@ -76,6 +77,14 @@ def _name_changed(self, context):
         runtime.dispatch("renamed", arm_obj, self)
     except Exception as e:  # noqa: BLE001
         runtime.report_error(arm_obj, f"could not rename '{self.name}': {e}")
+
+
+def _preserve_volume_changed(self, context):
+    arm_obj = self.id_data
+    try:
+        runtime.dispatch("preserve_volume_changed", arm_obj, self)
+    except Exception as e:  # noqa: BLE001
+        runtime.report_error(arm_obj, f"could not switch Preserve Volume of '{arm_obj.name}': {e}")
 
 
 def _live_changed(self, context):
@@ -163,6 +172,11 @@ class MyoskinRigState(bpy.types.PropertyGroup):
     auto_rebind: BoolProperty(name="Auto Rebind", default=True,
                               description="When a locator of a bound muscle moves, bind again once it is still, "
                                           "so the muscle joints follow (Object Mode)")
+    preserve_volume: BoolProperty(
+        name="Preserve Volume", default=False, update=_preserve_volume_changed,
+        description="Skin with the Armature modifier's Preserve Volume (dual quaternions) on the skeleton and "
+                    "the muscle joints together; Bind sets it on the character's Armature modifiers (at once "
+                    "when bound) and Bake PC2 computes the same mode in the core")
     max_influences: IntProperty(name="Max Influences", default=8, min=1, max=16,
                                 description="Bones and muscle joints per skin vertex after Bind (the largest "
                                             "are kept and renormalised; 4 is what game engines take)")

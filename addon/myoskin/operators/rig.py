@@ -149,7 +149,7 @@ def pc2_paths(path, skins):
 
 class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
     """Bake the skin over a frame range to a PC2 point cache computed by the core (Equation 3 with the
-    muscle joints), for a Mesh Cache modifier or other tools; a character of several meshes gets one file
+    muscle joints, or dual quaternions where the Armature modifier preserves volume), for a Mesh Cache modifier or other tools; a character of several meshes gets one file
     per mesh, <file>_<mesh>.pc2"""
     bl_idname = "myoskin.bake_pc2"
     bl_label = "Bake PC2"
@@ -190,8 +190,15 @@ def bake_skin_frames(context, skins, arm, start, end):
         joints, weights = rig_io.read_combined_weights(skin, names)
         to_arm = blender_io.mesh_to_armature_matrix(skin, arm)
         rest = blender_io.mesh_vertices(skin.data) @ to_arm[:3, :3].T + to_arm[:3, 3]
-        meshes.append((core.Skinner(rest, joints, weights, len(names)), np.linalg.inv(to_arm),
-                       np.empty((end - start + 1, len(rest), 3), dtype=np.float32)))
+        # The mode Blender skins this mesh with (its Armature modifier's Preserve Volume), so the PC2 equals
+        # Blender's skin; the transforms and rest matrices are in armature space, as the modifier's.
+        if binding.preserve_volume_of(skin, arm):
+            skinner = core.Skinner(rest, joints, weights, len(names), preserve_volume=True,
+                                   rest_matrices=core.combined_rest_matrices(rig.character, rig.rig),
+                                   dq_scale=binding.dq_scale())
+        else:
+            skinner = core.Skinner(rest, joints, weights, len(names))
+        meshes.append((skinner, np.linalg.inv(to_arm), np.empty((end - start + 1, len(rest), 3), dtype=np.float32)))
     rest_bones = np.asarray(rig.character.bone_rest)
     bind_inv = np.linalg.inv(np.asarray(rig.rig.bind_matrices))
     scene = context.scene

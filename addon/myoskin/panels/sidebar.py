@@ -214,6 +214,7 @@ class MYOSKIN_PT_bind(_WorkflowStep, bpy.types.Panel):
         row.operator("myoskin.bind", icon='LINKED')
         row.operator("myoskin.unbind", icon='UNLINKED')
         layout.prop(state, "max_influences")
+        layout.prop(state, "preserve_volume")
         if state.bound:
             skins = rig_skins(arm)
             layout.label(text=f"Bound to {', '.join(o.name for o in skins) if skins else '?'}", icon='CHECKMARK')

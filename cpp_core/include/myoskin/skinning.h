@@ -80,6 +80,10 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
 void skinningTransforms(const Skeleton& skeleton, const Pose& pose, const MuscleRig& rig,
                         const MuscleRigState& state, std::vector<Mat4>& transforms);
 
+// #B + #J rest matrices of the combined joints: the skeleton's bone rest matrices, then the rig's muscle
+// joint bind matrices (SkinnerOptions::jointRest for the preserve-volume mode).
+std::vector<Mat4> combinedRestMatrices(const Skeleton& skeleton, const MuscleRig& rig);
+
 // #B skeleton-only skinning transforms pose.matrices[i] * rest_i^-1 (plain LBS). Throws InputError on a
 // pose of the wrong size or with non-finite values.
 void skeletonTransforms(const Skeleton& skeleton, const Pose& pose, std::vector<Mat4>& transforms);
@@ -88,22 +92,43 @@ void skeletonTransforms(const Skeleton& skeleton, const Pose& pose, std::vector<
 // The skinner: built once from rest vertices + sparse weights, then deform(transforms) per frame
 // ============================================================================
 
+// How the preserve-volume mode carries a joint's scale (Blender changed it between versions; measured: 3.4.1
+// blends, 4.5 and 5.2 pivot):
+//   Pivot   (Blender 4.x, 5.x: add_weighted_dq_dq_pivot) each joint's scale becomes the translation it causes at
+//           the vertex, so every joint alone still carries the vertex to its linear position;
+//   Blended (Blender 3.x: add_weighted_dq_dq) the joints' scale matrices are blended linearly (joints without
+//           scale count as the identity) and applied before the blended rigid motion.
+enum class DualQuatScale { Pivot, Blended };
+
 struct SkinnerOptions {
   int grainSize = 2048;  // vertices per parallel task (TBB parallel_for grain)
   int threads = 0;       // worker threads; 0 = all cores
   // 0: any weight sum is accepted and normalised (Blender's semantics). > 0: strict, every row must sum to
   // 1 within this tolerance (InputError naming the vertex and its sum otherwise).
   double sumTolerance = 0.0;
+  // Blender's "Preserve Volume" (the Armature modifier's use_deform_preserve_volume): blend each vertex's
+  // joint transforms as dual quaternions instead of matrices, the way Blender does (mat4_to_dquat splits each
+  // joint's scale from its rotation in the joint's own rest frame, orthogonalising about the bone's Y axis;
+  // add_weighted_dq_dq(_pivot) with the scale as dualQuatScale says; normalize_dq, mul_v3m3_dq), in float32.
+  // Rest pose exact.
+  bool preserveVolume = false;
+  DualQuatScale dualQuatScale = DualQuatScale::Pivot;  // preserveVolume only: which Blender's scale handling
+  // preserveVolume only: each joint's rest matrix M_d (Blender's Bone.matrix_local; combinedRestMatrices),
+  // numJoints of them, or empty = identity. Only joints with scale or shear depend on it (the frame in which
+  // scale is split from rotation), so rigid transforms give the same result either way.
+  std::vector<Mat4> jointRest;
 };
 
-// Equation 3 in float32 over a structure-of-arrays copy of the rest skin: positions x[], y[], z[] and,
+// Equation 3 (or, with SkinnerOptions::preserveVolume, Blender's dual-quaternion blend) in float32 over a
+// structure-of-arrays copy of the rest skin: positions x[], y[], z[] and,
 // per vertex, its non-empty influences (joint index, weight normalised once at build time, which is
 // Blender's deform-time normalisation since the weights do not change). A vertex whose weight sum is
 // <= kRestWeightThreshold keeps its rest position. Empty slots (-1 or weight 0) cost nothing.
 class Skinner {
  public:
   // rest: #V by 3; weights: #V by K over [0, numJoints). Throws InputError naming the offending
-  // vertex/slot on a size mismatch, NaN/inf or negative weight, or a joint index outside [-1, numJoints).
+  // vertex/slot on a size mismatch, NaN/inf or negative weight, or a joint index outside [-1, numJoints),
+  // and on options.jointRest of the wrong count or with a non-finite or singular matrix.
   Skinner(const Points& rest, const SkinWeights& weights, int numJoints, const SkinnerOptions& options = {});
   ~Skinner();
   Skinner(Skinner&&) noexcept;
@@ -114,7 +139,7 @@ class Skinner {
   int influences() const;            // slots per vertex in the packed layout (max used over vertices)
   int restVertices() const;          // vertices that stay at rest (weight sum <= threshold)
   const SkinnerOptions& options() const;
-  void setOptions(const SkinnerOptions& options);  // grain size / threads for later deform calls
+  void setOptions(const SkinnerOptions& options);  // for later deform calls (validated like the constructor)
   size_t bytesPerFrame() const;      // memory read + written by one deform (for bandwidth bounds)
 
   // transforms: numJoints() skinning transforms (M_c M_d^-1; the last row is ignored). out: #V by 3.

@@ -14,6 +14,8 @@
 #include <cstring>
 #include <limits>
 
+#include <Eigen/Geometry>
+
 #include "myoskin/errors.h"
 #include "myoskin/skinning.h"
 
@@ -173,23 +175,218 @@ void runRange(RangeKernel kernel, const Skinner::Impl& s, const PackedTransform*
   kernel(s.joint.data(), s.weight.data(), s.x.data(), s.y.data(), s.z.data(), T, s.slots, begin, end, out);
 }
 
-void deformInto(const Skinner::Impl& s, const std::vector<Mat4>& transforms, float* out) {
-  std::shared_lock<std::shared_mutex> lock(s.optionsMutex);
-  const std::vector<PackedTransform> T = packTransforms(transforms, s.numJoints);
-  const RangeKernel kernel = chooseKernel();
+// ----------------------------------------------------------------------------
+// Preserve volume: Blender's dual quaternion skinning (BLI math_rotation: mat4_to_dquat,
+// add_weighted_dq_dq_pivot, normalize_dq, mul_v3m3_dq; BKE armature_deform with full_deform off, the
+// Armature modifier's evaluation). Quaternions are (w, x, y, z) like Blender's.
+// ----------------------------------------------------------------------------
+
+// One joint's dual quaternion: rotation quat, dual part trans, and (hasScale) the 3x4 scale matrix
+// (columns s0..s2 and translation s3) applied before the rotation.
+struct JointDQ {
+  float quat[4];
+  float trans[4];
+  float scale[12];  // column-major 3x4
+  float hasScale;   // 1 or 0 (Blender's scale_weight)
+};
+
+// Blender's is_orthonormal_m3 (columns orthogonal and of unit length within 1e-5).
+bool isOrthonormal(const Eigen::Matrix3d& m) {
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < i; ++j)
+      if (std::abs(m.col(i).dot(m.col(j))) > 1e-5) return false;
+    if (std::abs(m.col(i).squaredNorm() - 1.0) > 1e-5) return false;
+  }
+  return true;
+}
+
+// Rotation quaternion (w, x, y, z) of a matrix whose columns are normalised first (Blender's mat4_to_quat).
+Eigen::Vector4d rotationQuat(const Eigen::Matrix3d& m) {
+  Eigen::Matrix3d n = m;
+  for (int c = 0; c < 3; ++c) {
+    const double len = n.col(c).norm();
+    if (len > 0.0) n.col(c) /= len;
+  }
+  if (n.determinant() < 0.0) n = -n;  // Blender's mat3_normalized_to_quat_with_checks
+  const Eigen::Quaterniond q(n);
+  return {q.w(), q.x(), q.y(), q.z()};
+}
+
+// mat4_to_dquat(basemat = the joint's rest matrix, mat = its skinning transform), in float64.
+JointDQ jointDualQuat(const Mat4& mat, const Mat4& basemat) {
+  JointDQ d{};
+  const Mat4 baseRS = mat * basemat;
+  const Eigen::Vector3d dscale = baseRS.block<3, 3>(0, 0).colwise().norm().transpose() - Eigen::Vector3d::Ones();
+  const Eigen::Matrix3d mat3 = mat.block<3, 3>(0, 0);
+  Eigen::Matrix3d rot;
+  Eigen::Vector3d t;
+  if (!isOrthonormal(mat3) || mat3.determinant() < 0.0 || dscale.squaredNorm() > 1e-8) {
+    // orthogonalize_m4(baseRS, Y): keep the bone's Y axis, Z = X x Y, X = Y x Z
+    Eigen::Matrix3d o = baseRS.block<3, 3>(0, 0);
+    const Eigen::Vector3d y = o.col(1).normalized();
+    const Eigen::Vector3d z = o.col(0).cross(y).normalized();
+    const Eigen::Vector3d x = y.cross(z);
+    o.col(0) = x;
+    o.col(1) = y;
+    o.col(2) = z;
+    const Eigen::Vector4d bq = rotationQuat(o);
+    Mat4 baseR = Mat4::Identity();
+    baseR.block<3, 3>(0, 0) = Eigen::Quaterniond(bq[0], bq[1], bq[2], bq[3]).toRotationMatrix();
+    baseR.block<3, 1>(0, 3) = baseRS.block<3, 1>(0, 3);
+    const Mat4 baseinv = basemat.inverse();
+    const Mat4 R = baseR * baseinv;
+    const Mat4 S = baseR.inverse() * baseRS;
+    const Mat4 scale = basemat * S * baseinv;
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 3; ++r) d.scale[3 * c + r] = static_cast<float>(scale(r, c));
+    d.hasScale = 1.0f;
+    rot = R.block<3, 3>(0, 0);
+    t = R.block<3, 1>(0, 3);
+  } else {
+    rot = mat3;
+    t = mat.block<3, 1>(0, 3);
+  }
+  const Eigen::Vector4d q = rotationQuat(rot);
+  const Eigen::Vector4d tr(-0.5 * (t[0] * q[1] + t[1] * q[2] + t[2] * q[3]),
+                           0.5 * (t[0] * q[0] + t[1] * q[3] - t[2] * q[2]),
+                           0.5 * (-t[0] * q[3] + t[1] * q[0] + t[2] * q[1]),
+                           0.5 * (t[0] * q[2] - t[1] * q[1] + t[2] * q[0]));
+  for (int i = 0; i < 4; ++i) {
+    d.quat[i] = static_cast<float>(q[i]);
+    d.trans[i] = static_cast<float>(tr[i]);
+  }
+  return d;
+}
+
+// Joint dual quaternions, with the identity at index #J (rest vertices and padding slots).
+std::vector<JointDQ> packDualQuats(const std::vector<Mat4>& transforms, const Skinner::Impl& s) {
+  if (static_cast<int>(transforms.size()) != s.numJoints)
+    throw InputError("skinning: " + std::to_string(transforms.size()) + " transforms for " +
+                     std::to_string(s.numJoints) + " joints");
+  std::vector<JointDQ> dq(static_cast<size_t>(s.numJoints) + 1);
+  for (int j = 0; j < s.numJoints; ++j) {
+    if (!transforms[j].allFinite())
+      throw InputError("skinning: transform " + std::to_string(j) + " has a NaN or infinite value");
+    Mat4 m = transforms[j];
+    m.row(3) << 0.0, 0.0, 0.0, 1.0;  // the last row is ignored, as in the linear path
+    dq[j] = jointDualQuat(m, s.options.jointRest.empty() ? Mat4::Identity() : s.options.jointRest[j]);
+  }
+  dq[s.numJoints] = JointDQ{{1.0f, 0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.0f, 0.0f}, {}, 0.0f};
+  return dq;
+}
+
+// Per vertex: add_weighted_dq_dq_pivot (Pivot: pivot = the rest position, the scale matrix discarded after
+// its translation at the pivot is taken into the dual part) or add_weighted_dq_dq (Blended: scale matrices
+// summed with unflipped weights) over its influences, normalize_dq (weights normalised at build time; the
+// joints without scale make up the identity's share), then mul_v3m3_dq.
+template <bool Blended>
+void skinRangeDualQuat(const Skinner::Impl& s, const JointDQ* D, int begin, int end, float* out) {
+  const int k = s.slots;
+  for (int v = begin; v < end; ++v) {
+    const uint16_t* jv = s.joint.data() + static_cast<size_t>(v) * k;
+    const float* wv = s.weight.data() + static_cast<size_t>(v) * k;
+    float co[3] = {s.x[v], s.y[v], s.z[v]};
+    float sq[4] = {0.0f, 0.0f, 0.0f, 0.0f}, st[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    float sm[12] = {}, scaleWeight = 0.0f, total = 0.0f;
+    for (int i = 0; i < k; ++i) {
+      float w = wv[i];
+      if (w == 0.0f) continue;
+      total += w;
+      const JointDQ& d = D[jv[i]];
+      const float* q = d.quat;
+      float tr[4] = {d.trans[0], d.trans[1], d.trans[2], d.trans[3]};
+      if (Blended) {
+        if (d.hasScale != 0.0f) {
+          for (int e = 0; e < 12; ++e) sm[e] += w * d.scale[e];
+          scaleWeight += w;
+        }
+      } else if (d.hasScale != 0.0f) {
+        const float* m = d.scale;
+        float dst[3];
+        for (int r = 0; r < 3; ++r) dst[r] = m[r] * co[0] + m[3 + r] * co[1] + m[6 + r] * co[2] + m[9 + r] - co[r];
+        tr[0] -= 0.5f * (q[1] * dst[0] + q[2] * dst[1] + q[3] * dst[2]);
+        tr[1] += 0.5f * (q[0] * dst[0] + q[2] * dst[2] - q[3] * dst[1]);
+        tr[2] += 0.5f * (q[0] * dst[1] + q[3] * dst[0] - q[1] * dst[2]);
+        tr[3] += 0.5f * (q[0] * dst[2] + q[1] * dst[1] - q[2] * dst[0]);
+      }
+      if (q[0] * sq[0] + q[1] * sq[1] + q[2] * sq[2] + q[3] * sq[3] < 0.0f) w = -w;
+      for (int c = 0; c < 4; ++c) {
+        sq[c] += w * q[c];
+        st[c] += w * tr[c];
+      }
+    }
+    if (Blended && scaleWeight != 0.0f) {  // normalize_dq's scale, then applied before the rotation
+      const float add = total - scaleWeight, inv = 1.0f / total;
+      sm[0] += add;
+      sm[4] += add;
+      sm[8] += add;
+      float r[3];
+      for (int c = 0; c < 3; ++c) r[c] = (sm[c] * co[0] + sm[3 + c] * co[1] + sm[6 + c] * co[2] + sm[9 + c]) * inv;
+      co[0] = r[0];
+      co[1] = r[1];
+      co[2] = r[2];
+    }
+    const float w = sq[0], x = sq[1], y = sq[2], z = sq[3];
+    const float t0 = st[0], t1 = st[1], t2 = st[2], t3 = st[3];
+    float len2 = w * w + x * x + y * y + z * z;
+    if (len2 > 0.0f) len2 = 1.0f / len2;
+    // rotation (rows of Blender's column-major M) and translation
+    const float r0 = (w * w + x * x - y * y - z * z) * co[0] + 2 * (x * y - w * z) * co[1] + 2 * (x * z + w * y) * co[2];
+    const float r1 = 2 * (x * y + w * z) * co[0] + (w * w + y * y - x * x - z * z) * co[1] + 2 * (y * z - w * x) * co[2];
+    const float r2 = 2 * (x * z - w * y) * co[0] + 2 * (y * z + w * x) * co[1] + (w * w + z * z - x * x - y * y) * co[2];
+    const float tx = 2 * (-t0 * x + w * t1 - t2 * z + y * t3);
+    const float ty = 2 * (-t0 * y + t1 * z - x * t3 + w * t2);
+    const float tz = 2 * (-t0 * z + x * t2 + w * t3 - t1 * y);
+    float* o = out + 3 * static_cast<size_t>(v);
+    o[0] = (r0 + tx) * len2;
+    o[1] = (r1 + ty) * len2;
+    o[2] = (r2 + tz) * len2;
+  }
+}
+
+template <class Range>
+void parallelRanges(const Skinner::Impl& s, const Range& range) {
   const int grain = std::max(1, s.options.grainSize);
   auto body = [&] {
     tbb::parallel_for(
         tbb::blocked_range<int>(0, s.numVertices, grain),
-        [&](const tbb::blocked_range<int>& r) { runRange(kernel, s, T.data(), r.begin(), r.end(), out); },
-        tbb::simple_partitioner());
+        [&](const tbb::blocked_range<int>& r) { range(r.begin(), r.end()); }, tbb::simple_partitioner());
   };
   if (s.options.threads == 1 || s.numVertices <= grain) {
-    runRange(kernel, s, T.data(), 0, s.numVertices, out);
+    range(0, s.numVertices);
   } else if (s.arena) {
     s.arena->execute(body);
   } else {
     body();
+  }
+}
+
+void deformInto(const Skinner::Impl& s, const std::vector<Mat4>& transforms, float* out) {
+  std::shared_lock<std::shared_mutex> lock(s.optionsMutex);
+  if (s.options.preserveVolume) {
+    const std::vector<JointDQ> D = packDualQuats(transforms, s);
+    if (s.options.dualQuatScale == DualQuatScale::Blended)
+      parallelRanges(s, [&](int begin, int end) { skinRangeDualQuat<true>(s, D.data(), begin, end, out); });
+    else
+      parallelRanges(s, [&](int begin, int end) { skinRangeDualQuat<false>(s, D.data(), begin, end, out); });
+    return;
+  }
+  const std::vector<PackedTransform> T = packTransforms(transforms, s.numJoints);
+  const RangeKernel kernel = chooseKernel();
+  parallelRanges(s, [&](int begin, int end) { runRange(kernel, s, T.data(), begin, end, out); });
+}
+
+void validateOptions(const SkinnerOptions& o, int numJoints) {
+  if (o.jointRest.empty()) return;
+  if (static_cast<int>(o.jointRest.size()) != numJoints)
+    throw InputError("skinning: " + std::to_string(o.jointRest.size()) + " joint rest matrices for " +
+                     std::to_string(numJoints) + " joints");
+  for (size_t j = 0; j < o.jointRest.size(); ++j) {
+    const Mat4& m = o.jointRest[j];
+    if (!m.allFinite())
+      throw InputError("skinning: joint rest matrix " + std::to_string(j) + " has a NaN or infinite value");
+    if (!(std::abs(m.block<3, 3>(0, 0).determinant()) > 1e-12))
+      throw InputError("skinning: joint rest matrix " + std::to_string(j) + " is singular");
   }
 }
 
@@ -213,6 +410,7 @@ Skinner::Skinner(const Points& rest, const SkinWeights& weights, int numJoints, 
   if (weights.numVertices() != rest.rows())
     throw InputError("skinning: " + std::to_string(weights.numVertices()) + " weight rows for " +
                      std::to_string(rest.rows()) + " vertices");
+  validateOptions(options, numJoints);
   const int nv = static_cast<int>(rest.rows());
   const int kin = weights.influences();
   int slots = 1;
@@ -281,6 +479,7 @@ int Skinner::restVertices() const { return impl_->restCount; }
 const SkinnerOptions& Skinner::options() const { return impl_->options; }
 
 void Skinner::setOptions(const SkinnerOptions& options) {
+  validateOptions(options, impl_->numJoints);
   std::unique_lock<std::shared_mutex> lock(impl_->optionsMutex);
   impl_->options = options;
   impl_->makeArena();

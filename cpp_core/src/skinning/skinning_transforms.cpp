@@ -23,4 +23,12 @@ void skinningTransforms(const Skeleton& skeleton, const Pose& pose, const Muscle
   }
 }
 
+std::vector<Mat4> combinedRestMatrices(const Skeleton& skeleton, const MuscleRig& rig) {
+  std::vector<Mat4> rest;
+  rest.reserve(static_cast<size_t>(skeleton.numBones()) + rig.numJoints());
+  for (const auto& bone : skeleton.bones) rest.push_back(bone.rest);
+  for (const Mat4& m : rig.bindMatrices()) rest.push_back(m);
+  return rest;
+}
+
 }  // namespace myoskin

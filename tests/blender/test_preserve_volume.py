@@ -1,0 +1,172 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Blender tier for Preserve Volume: the rig setting makes Bind switch the Armature modifier's
+use_deform_preserve_volume on, and Blender's dual quaternion skin then equals the core's preserve-volume
+skinner (1e-5 of the character's size) with the muscle joints bulging (scaled joint bones), a scaled skeleton
+bone, elbow flexion and shoulder abduction; the rest pose stays exact (1e-6 of the size); the setting follows
+on a bound rig, Unbind gives the modifier its own setting back, and Bake PC2 computes the same mode.
+
+    BLENDER_USER_SCRIPTS=build/blender_scripts MYOSKIN_SOURCE_DIR=$PWD \
+    blender -b --factory-startup --python-exit-code 1 --addons myoskin --python tests/blender/test_preserve_volume.py
+"""
+import os
+import sys
+import tempfile
+
+import bpy
+import numpy as np
+
+sys.path.insert(0, os.path.join(os.environ.get("MYOSKIN_SOURCE_DIR", os.path.join(os.path.dirname(
+    os.path.abspath(__file__)), "..", "..")), "tests", "blender"))
+import blender_test_runner as runner  # noqa: E402
+from blender_test_runner import addon_module as module, core  # noqa: E402
+
+TOLERANCE = 1e-5  # Blender (float32) against the core, relative to the character's bounding-box diagonal
+TMP = tempfile.mkdtemp(prefix="myoskin_test_preserve_volume_")
+
+
+def evaluated(skin):
+    bpy.context.view_layer.update()
+    return module("blender_io").evaluated_vertices(skin)
+
+
+def size_of(skin):
+    rest = module("blender_io").mesh_vertices(skin.data)
+    return float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0)))
+
+
+def armature_modifier(skin, arm):
+    return next(m for m in skin.modifiers if m.type == 'ARMATURE' and m.object == arm)
+
+
+def bound_arm(preserve_volume=True, seed=1):
+    """The synthetic arm, extracted, Preserve Volume set, bound; returns (arm, skin, state)."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=seed) == {'FINISHED'}
+    skin = bpy.context.view_layer.objects.active
+    arm = skin.parent
+    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
+    arm.myoskin.preserve_volume = preserve_volume
+    assert bpy.ops.myoskin.bind() == {'FINISHED'}
+    return arm, skin, arm.myoskin
+
+
+def core_skin(arm, skin, preserve_volume):
+    """The core's skin for the current evaluated pose (mesh object space), in the given mode; also the
+    largest |scale - 1| of a muscle joint in this pose."""
+    live, rig_io, io = module("live"), module("rig_io"), module("blender_io")
+    rig = live.live_rig(arm)
+    pose = live.evaluated_pose(arm, rig, bpy.context.evaluated_depsgraph_get())
+    joints, weights = rig_io.read_combined_weights(skin, rig.bone_names + rig.joint_names)
+    joint_matrices = rig.rig.evaluate(pose)["joint_matrices"]
+    transforms = np.concatenate([pose @ np.linalg.inv(np.asarray(rig.character.bone_rest)),
+                                 joint_matrices @ np.linalg.inv(np.asarray(rig.rig.bind_matrices))])
+    rest = io.mesh_vertices(skin.data)
+    bulge = float(np.abs(np.linalg.norm(joint_matrices[:, :3, :3], axis=1) - 1.0).max())
+    if not preserve_volume:
+        return core().skin(rest, joints, weights, transforms), bulge
+    return core().skin(rest, joints, weights, transforms, preserve_volume=True,
+                       rest_matrices=core().combined_rest_matrices(rig.character, rig.rig),
+                       dq_scale=module("binding").dq_scale()), bulge
+
+
+def set_pose(arm, rotations, scales=None):
+    """rotations {bone: (x, y, z) Euler degrees}, scales {bone: (sx, sy, sz)}; every other bone at rest."""
+    for pb in arm.pose.bones:
+        if pb.name not in ("clavicle", "upper_arm", "forearm", "hand"):
+            continue
+        pb.rotation_mode = 'XYZ'
+        pb.rotation_euler = tuple(np.radians(rotations.get(pb.name, (0.0, 0.0, 0.0))))
+        pb.scale = (scales or {}).get(pb.name, (1.0, 1.0, 1.0))
+
+
+POSES = [  # (name, rotations, scales)
+    ("elbow 120", {"forearm": (120.0, 0.0, 0.0)}, None),
+    ("elbow 70", {"forearm": (70.0, 0.0, 0.0)}, None),
+    ("shoulder abduction 90 + elbow 60", {"upper_arm": (0.0, 0.0, 90.0), "forearm": (60.0, 0.0, 0.0)}, None),
+    ("shoulder 120 forward, wrist", {"upper_arm": (-120.0, 20.0, 0.0), "hand": (30.0, 0.0, 20.0)}, None),
+    # Scaled skeleton bones: uniform on the upper arm (its children inherit it without shear: a non-uniform
+    # one shears the muscle joints below it, which a Blender bone cannot take, in either mode), non-uniform on
+    # the hand (a leaf).
+    ("elbow 110, scaled upper arm and hand", {"forearm": (110.0, 0.0, 0.0), "hand": (20.0, 0.0, 30.0)},
+     {"upper_arm": (1.1, 1.1, 1.1), "hand": (1.2, 0.85, 1.1)}),
+]
+
+
+def test_bind_sets_preserve_volume_and_blender_equals_the_core():
+    arm, skin, state = bound_arm(preserve_volume=True)
+    mod = armature_modifier(skin, arm)
+    assert mod.use_deform_preserve_volume, "Bind should switch the modifier's Preserve Volume on"
+    size = size_of(skin)
+    rest = module("blender_io").mesh_vertices(skin.data)
+    at_rest = evaluated(skin)
+    rest_err = float(np.abs(at_rest - rest).max()) / size
+    expected_rest, _ = core_skin(arm, skin, True)
+    assert rest_err < 1e-6 and np.abs(expected_rest - rest).max() / size < 1e-6, rest_err
+    errors, bulges = [], []
+    for name, rotations, scales in POSES:
+        set_pose(arm, rotations, scales)
+        blender = evaluated(skin)
+        expected, bulge = core_skin(arm, skin, True)
+        linear, _ = core_skin(arm, skin, False)
+        err = float(np.abs(blender - expected).max()) / size
+        differs = float(np.abs(blender - linear).max()) / size
+        print(f"  {name}: Blender preserve volume vs core {err:.2e} of the size (vs linear {differs:.2e}), "
+              f"largest muscle joint |scale - 1| {bulge:.3f}")
+        assert differs > 1e-3, f"{name}: Blender's skin looks linear; is Preserve Volume on?"
+        errors.append(err)
+        bulges.append(bulge)
+    print(f"  rest pose error {rest_err:.2e}; max Blender vs core in preserve volume {max(errors):.2e} "
+          f"(Blender {bpy.app.version_string})")
+    assert max(errors) < TOLERANCE, errors
+    assert max(bulges) > 0.02, "some pose should bulge (scale) the muscle joints"
+
+
+def test_the_setting_follows_on_a_bound_rig_and_unbind_restores_the_modifier():
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    skin = bpy.context.view_layer.objects.active
+    arm = skin.parent
+    mod = armature_modifier(skin, arm)  # the character's own modifier, kept by Bind
+    mod.use_deform_preserve_volume = False
+    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
+    state = arm.myoskin
+    state.preserve_volume = True
+    assert bpy.ops.myoskin.bind() == {'FINISHED'}
+    assert armature_modifier(skin, arm).use_deform_preserve_volume
+    set_pose(arm, {"forearm": (100.0, 0.0, 0.0)})
+    size = size_of(skin)
+    state.preserve_volume = False  # bound: the modifier follows at once
+    assert not armature_modifier(skin, arm).use_deform_preserve_volume
+    assert np.abs(evaluated(skin) - core_skin(arm, skin, False)[0]).max() / size < TOLERANCE
+    state.preserve_volume = True
+    assert armature_modifier(skin, arm).use_deform_preserve_volume
+    assert np.abs(evaluated(skin) - core_skin(arm, skin, True)[0]).max() / size < TOLERANCE
+    assert bpy.ops.myoskin.unbind() == {'FINISHED'}
+    assert not armature_modifier(skin, arm).use_deform_preserve_volume, "Unbind restores the modifier's own setting"
+    state.preserve_volume = False  # unbound: nothing to follow, no error
+    assert not state.bound
+
+
+def test_pc2_bake_uses_the_same_mode_and_equals_blender():
+    arm, skin, state = bound_arm(preserve_volume=True)
+    pb = arm.pose.bones["forearm"]
+    pb.rotation_mode = 'XYZ'
+    for frame, degrees in ((1, 0.0), (3, 120.0)):
+        pb.rotation_euler = (np.radians(degrees), 0.0, 0.0)
+        pb.keyframe_insert("rotation_euler", frame=frame)
+    path = os.path.join(TMP, "skin.pc2")
+    assert bpy.ops.myoskin.bake_pc2(filepath=path, frame_start=1, frame_end=3) == {'FINISHED'}
+    frames = core().read_pc2(path)["frames"]
+    size = size_of(skin)
+    errors = []
+    for k, frame in enumerate((1, 2, 3)):
+        bpy.context.scene.frame_set(frame)
+        blender = module("blender_io").evaluated_vertices(skin)
+        errors.append(float(np.abs(blender - frames[k]).max()) / size)
+    linear, _ = core_skin(arm, skin, False)
+    print(f"  PC2 (preserve volume) vs Blender: {max(errors):.2e} of the size")
+    assert max(errors) < TOLERANCE, errors
+    assert np.abs(frames[2] - linear).max() / size > 1e-3  # the bake really is in the preserve-volume mode
+
+
+runner.run()
