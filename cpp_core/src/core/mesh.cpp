@@ -97,14 +97,20 @@ Mesh weldByPosition(const Mesh& mesh, double tolerance, std::vector<int>& weldMa
   weldMap.assign(n, -1);
   const double cell = std::max(tolerance, 1e-12);
   // Hash grid on cells of size `cell`; candidates are searched in the 27 neighbouring cells.
+  // Cell coordinates in 64 bits, clamped (and NaN at 0): p / cell exceeds int's range for a large skin and a
+  // small tolerance (5.7e10 at 0.057 m and 1e-12), and casting it to int was undefined (UBSan).
+  using Cell = Eigen::Matrix<int64_t, 3, 1>;
   auto cellOf = [&](const Vec3& p) {
-    return Eigen::Vector3i(static_cast<int>(std::floor(p.x() / cell)), static_cast<int>(std::floor(p.y() / cell)),
-                           static_cast<int>(std::floor(p.z() / cell)));
+    Cell c;
+    for (int k = 0; k < 3; ++k) {
+      const double q = std::floor(p[k] / cell);
+      c[k] = q == q ? static_cast<int64_t>(std::clamp(q, -4e18, 4e18)) : 0;
+    }
+    return c;
   };
-  auto hashOf = [](const Eigen::Vector3i& c) {
-    return (static_cast<uint64_t>(static_cast<uint32_t>(c.x())) * 73856093ULL) ^
-           (static_cast<uint64_t>(static_cast<uint32_t>(c.y())) * 19349663ULL) ^
-           (static_cast<uint64_t>(static_cast<uint32_t>(c.z())) * 83492791ULL);
+  auto hashOf = [](const Cell& c) {
+    return (static_cast<uint64_t>(c.x()) * 73856093ULL) ^ (static_cast<uint64_t>(c.y()) * 19349663ULL) ^
+           (static_cast<uint64_t>(c.z()) * 83492791ULL);
   };
   std::unordered_multimap<uint64_t, int> grid;
   grid.reserve(n);
@@ -112,12 +118,12 @@ Mesh weldByPosition(const Mesh& mesh, double tolerance, std::vector<int>& weldMa
   representatives.reserve(n);
   for (int i = 0; i < n; ++i) {
     const Vec3 p = mesh.vertices.row(i).transpose();
-    const Eigen::Vector3i c = cellOf(p);
+    const Cell c = cellOf(p);
     int found = -1;
     for (int dx = -1; dx <= 1 && found < 0; ++dx)
       for (int dy = -1; dy <= 1 && found < 0; ++dy)
         for (int dz = -1; dz <= 1 && found < 0; ++dz) {
-          auto range = grid.equal_range(hashOf(c + Eigen::Vector3i(dx, dy, dz)));
+          auto range = grid.equal_range(hashOf(c + Cell(dx, dy, dz)));
           for (auto it = range.first; it != range.second; ++it) {
             const int r = it->second;
             if ((mesh.vertices.row(representatives[r]).transpose() - p).norm() <= tolerance &&
