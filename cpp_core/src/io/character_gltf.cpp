@@ -23,6 +23,7 @@ namespace {
 constexpr double kMinBoneLength = 1e-6;  // child joints closer than this to a joint do not give it a tail
 constexpr double kAlongYDegrees = 15.0;  // a child "continues along Y" within this angle of the joint's Y axis
 constexpr double kFallbackLength = 0.1;  // metres, for a root bone without a usable child
+constexpr size_t kMaxViewlessElements = size_t(1) << 24;  // an accessor without a buffer view (all zeros)
 
 // ============================================================================
 // File
@@ -133,8 +134,11 @@ const unsigned char* viewData(const tg::Model& model, int viewIndex, size_t offs
   if (view.buffer < 0 || view.buffer >= static_cast<int>(model.buffers.size()))
     throw InputError(what + " refers to a missing buffer");
   const std::vector<unsigned char>& data = model.buffers[view.buffer].data;
-  const uint64_t need = count == 0 ? 0 : uint64_t(offset) + uint64_t(stride) * (count - 1) + elementSize;
-  if (need > view.byteLength || uint64_t(view.byteOffset) + view.byteLength > data.size())
+  // In this order no sum or product can wrap around (the sizes come from the file: up to 2^64 - 1 each).
+  const bool fits = view.byteOffset <= data.size() && view.byteLength <= data.size() - view.byteOffset &&
+                    (count == 0 || (offset <= view.byteLength && elementSize <= view.byteLength - offset &&
+                                    count - 1 <= (view.byteLength - offset - elementSize) / stride));
+  if (!fits)
     throw InputError(what + " reads past the end of its buffer");
   return data.data() + view.byteOffset + offset;
 }
@@ -151,14 +155,23 @@ std::vector<double> readAccessor(const tg::Model& model, int index, int expected
   const int nc = tg::GetNumComponentsInType(static_cast<uint32_t>(a.type));
   if (cs == 0 || nc <= 0) throw InputError(what + " has an unknown component type");
   const size_t elementSize = cs * static_cast<size_t>(nc);
-  std::vector<double> out(a.count * static_cast<size_t>(nc), 0.0);
+  // The count is checked against the data before anything is allocated for it: a buffer view must hold it; an
+  // accessor without one (zeros, maybe with sparse values) may not claim more than kMaxViewlessElements.
+  const unsigned char* base = nullptr;
+  size_t stride = elementSize;
   if (a.bufferView >= 0) {
     if (a.bufferView >= static_cast<int>(model.bufferViews.size()))
       throw InputError(what + " refers to a missing buffer view");
     const tg::BufferView& view = model.bufferViews[a.bufferView];
-    const size_t stride = view.byteStride ? view.byteStride : elementSize;
+    stride = view.byteStride ? view.byteStride : elementSize;
     if (stride < elementSize) throw InputError(what + " has a byte stride smaller than its element");
-    const unsigned char* base = viewData(model, a.bufferView, a.byteOffset, stride, a.count, elementSize, what);
+    base = viewData(model, a.bufferView, a.byteOffset, stride, a.count, elementSize, what);
+  } else if (a.count > kMaxViewlessElements) {
+    throw InputError(what + " has " + std::to_string(a.count) + " elements and no buffer view (at most " +
+                     std::to_string(kMaxViewlessElements) + ")");
+  }
+  std::vector<double> out(a.count * static_cast<size_t>(nc), 0.0);
+  if (base) {
     for (size_t i = 0; i < a.count; ++i)
       for (int c = 0; c < nc; ++c)
         out[i * nc + c] = readComponent(base + i * stride + c * cs, a.componentType, a.normalized);

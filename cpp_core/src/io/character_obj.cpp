@@ -78,7 +78,7 @@ Mesh readObj(const std::string& path) {
           throw InputError(where(lineNo) + "bad face vertex '" + std::string(t[k]) + "'");
         const long long count = static_cast<long long>(vertices.size());
         if (idx < 0) {
-          if (-idx > count)
+          if (idx < -count)  // (not -idx > count: -LLONG_MIN overflows)
             throw InputError(where(lineNo) + "face index " + std::to_string(idx) + " is out of range (" +
                              std::to_string(count) + " vertices so far)");
           idx = count + idx;

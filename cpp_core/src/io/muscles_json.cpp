@@ -104,13 +104,16 @@ Muscle readMuscle(const json& j, size_t index) {
   if (!type.is_string()) throw InputError("muscles JSON: " + where + ".wrap.type must be a string");
   m.wrap.type = wrapTypeFromName(type.get<std::string>());
   if (m.wrap.type != WrapType::None) {
-    m.wrap.bone = field(wrap, "bone", where + ".wrap").get<std::string>();
+    const json& bone = field(wrap, "bone", where + ".wrap");
+    if (!bone.is_string()) throw InputError("muscles JSON: " + where + ".wrap.bone must be a string");
+    m.wrap.bone = bone.get<std::string>();
     m.wrap.radius = number(field(wrap, "radius", where + ".wrap"), where + ".wrap.radius");
     if (wrap.contains("side")) m.wrap.side = number(wrap["side"], where + ".wrap.side") < 0 ? -1 : 1;
   }
   m.bulge = number(field(j, "bulge", where), where + ".bulge");
   const json& joints = field(j, "joints", where);
-  if (!joints.is_number_integer()) throw InputError("muscles JSON: " + where + ".joints must be an integer");
+  if (!joints.is_number_integer() || joints.get<int64_t>() < 1 || joints.get<int64_t>() > 100000)
+    throw InputError("muscles JSON: " + where + ".joints must be an integer from 1 to 100000");
   m.joints = joints.get<int>();
   if (j.contains("confidence")) m.confidence = number(j["confidence"], where + ".confidence");
   return m;

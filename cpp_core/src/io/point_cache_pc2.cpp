@@ -123,11 +123,15 @@ PointCache readPC2(const std::string& path) {
   const int32_t samples = get<int32_t>(in);
   if (version != 1) throw InputError("pc2: " + path + " has version " + std::to_string(version) + ", expected 1");
   if (cache.numPoints < 0 || samples < 0) throw InputError("pc2: " + path + " has negative counts");
-  const std::streamoff expected =
-      kHeaderSize + static_cast<std::streamoff>(samples) * cache.numPoints * 3 * static_cast<std::streamoff>(sizeof(float));
-  if (size != expected)
+  // (With no points any frame count matches the 32-byte file: 10^9 empty frames were allocated.)
+  if (cache.numPoints == 0) throw InputError("pc2: " + path + " has no points (the writer needs at least one)");
+  // The header's counts (up to 2^31 each) must account for the file's bytes exactly; their product can exceed
+  // 64 bits (signed overflow), so it is computed in 128 bits.
+  const __int128 expected = kHeaderSize + static_cast<__int128>(samples) * cache.numPoints * 3 * sizeof(float);
+  if (static_cast<__int128>(size) != expected)
     throw InputError("pc2: " + path + " is " + std::to_string(size) + " bytes, the header promises " +
-                     std::to_string(expected));
+                     (expected > INT64_MAX ? std::string("more than 2^63")
+                                           : std::to_string(static_cast<long long>(expected))));
   cache.frames.resize(samples);
   for (PointsF& f : cache.frames) {
     f.resize(cache.numPoints, 3);
