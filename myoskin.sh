@@ -17,6 +17,10 @@ JOBS="${MYOSKIN_JOBS:-$(nproc)}"
 PACKAGES=(g++ cmake make libcgal-dev libopenmesh-dev libglm-dev libeigen3-dev pybind11-dev python3-dev
           libtinygltf-dev nlohmann-json3-dev libtbb-dev libgtest-dev libbenchmark-dev python3-numpy
           python3-pytest python3-venv python3-pip blender xvfb xauth debootstrap)
+# The sanitizer and fuzz tiers (host only: clang with its ASan/UBSan/libFuzzer runtimes; the same names on
+# Debian 12 and 13). MYOSKIN_SANITIZE=0 skips that build and its tiers (a quicker local loop).
+SANITIZE_PACKAGES=(clang libclang-rt-dev)
+SANITIZE="${MYOSKIN_SANITIZE:-1}"
 # Debian's cmake: a pip-installed CMake 4 may come first on PATH.
 CMAKE=/usr/bin/cmake; [ -x "$CMAKE" ] || CMAKE=cmake
 CTEST=/usr/bin/ctest; [ -x "$CTEST" ] || CTEST=ctest
@@ -29,8 +33,9 @@ log() { printf '\033[1mmyoskin:\033[0m %s\n' "$*"; }
 
 # Install whatever Debian packages are missing (as root, or through sudo).
 setup() {
-  local missing=()
-  for p in "${PACKAGES[@]}"; do
+  local missing=() wanted=("${PACKAGES[@]}")
+  [ "$SANITIZE" = 0 ] || wanted+=("${SANITIZE_PACKAGES[@]}")
+  for p in "${wanted[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
   if [ ${#missing[@]} -eq 0 ]; then log "all Debian packages present"; matrix_setup; return; fi
@@ -50,12 +55,42 @@ setup() {
 build() {
   mkdir -p "$BUILD"
   matrix_write_cmake
+  write_sanitize_cmake
   if [ ! -f "$BUILD/CMakeCache.txt" ]; then
     "$CMAKE" -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3
   fi
   "$CMAKE" --build "$BUILD" -j "$JOBS"
   matrix_build
   package
+  build_sanitize
+}
+
+# The sanitizer build in build/sanitize (clang, ASan + UBSan + LeakSanitizer, the libFuzzer targets; configured
+# once, incremental after), and <build>/sanitize.cmake, which puts its tests in the main build's ctest under the
+# labels `sanitize` and `fuzz` (tests/CMakeLists.txt).
+write_sanitize_cmake() {
+  local out="$BUILD/sanitize.cmake" tmp="$BUILD/sanitize.cmake.tmp" runtime="" dir
+  {
+    echo "# Written by myoskin.sh; read by tests/CMakeLists.txt."
+    if [ "$SANITIZE" != 0 ]; then
+      dir="$(clang++ -print-runtime-dir 2>/dev/null || true)"
+      for f in "$dir/libclang_rt.asan-x86_64.so" "$dir/libclang_rt.asan.so"; do [ -f "$f" ] && runtime="$f" && break; done
+      printf 'myoskin_sanitize_tier(BUILD "%s" ASAN_RUNTIME "%s")\n' "$BUILD/sanitize" "$runtime"
+    fi
+  } >"$tmp"
+  if ! cmp -s "$tmp" "$out"; then mv "$tmp" "$out"; else rm -f "$tmp"; fi
+}
+
+build_sanitize() {
+  [ "$SANITIZE" != 0 ] || return 0
+  local dir="$BUILD/sanitize"
+  if [ ! -f "$dir/CMakeCache.txt" ]; then
+    CC=clang CXX=clang++ "$CMAKE" -S "$ROOT" -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+      -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -DMYOSKIN_SANITIZE=ON -DMYOSKIN_FUZZ=ON -DMYOSKIN_BUILD_BENCHMARKS=OFF \
+      -DPython3_EXECUTABLE=/usr/bin/python3
+  fi
+  log "sanitizer build ($dir)"
+  "$CMAKE" --build "$dir" -j "$JOBS"
 }
 
 run_tests() {
