@@ -64,7 +64,7 @@ struct SyntheticBodyOptions {
   bool split = false;                // several meshes (trunk + head, arms or front legs, legs), as a glTF loader reads
                                      // them: pieces that meet at open boundaries, welded by position (Character::pieces)
   double cellSize = 0.0;             // skin resolution: grid spacing of the surface extraction in metres (before
-                                     // `scale`); 0 = 6.5 mm
+                                     // `scale`); 0 = 9 mm (a limb radius is 6 of them)
 };
 
 // A whole character: the skin is the zero set of a smooth union (polynomial smooth minimum, 3 cm) of star-shaped
@@ -73,7 +73,7 @@ struct SyntheticBodyOptions {
 // marching tetrahedra on a regular grid: one closed, manifold, outward-oriented skin (also when split).
 //   Biped (about 1.75 m, Z up, facing -Y, left side at +X, A-pose): hips (root) -> spine -> chest -> neck -> head;
 //     chest -> shoulder -> upper_arm -> forearm -> hand on each side; hips -> thigh -> shin -> foot on each side.
-//     Muscles per arm: deltoid, biceps, triceps, brachialis, forearm flexors and extensors; per leg: quadriceps,
+//     Muscles per arm: biceps, triceps, brachialis, forearm flexors and extensors; per leg: quadriceps,
 //     hamstrings, gastrocnemius, tibialis anterior.
 //   Quadruped (trunk along Y, head at -Y): hips (root) -> spine -> chest -> neck -> head; hips -> tail -> tail.001 ->
 //     tail.002; chest -> shoulder (scapula) -> front_thigh -> front_shin -> front_foot; hips -> thigh -> shin -> foot.

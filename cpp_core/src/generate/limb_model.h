@@ -192,8 +192,13 @@ struct MuscleSpec {
 
 // Muscles from their canonical specs with seeded perturbation of sizes, angles, extents (six draws each, also when
 // scale is 0). Layout: mapX(canonical x) and baseRadius(x, theta) of the muscle-free limb.
+// minWidth > 0 (the varied bodies; the synthetic arm keeps 0): a belly whose silhouette stays exposed unless it is
+// narrowed below minWidth of its width is kept at minWidth and made shallower instead (its protrusion lowered until the
+// silhouette hides; at most down to 0.2 of it): a shallow belly high on its limb otherwise shows sharp flanks as a
+// sliver of its width.
 template <class Layout>
-std::vector<MuscleModel> makeMuscles(const Layout& layout, double scale, Jitter& jitter, const std::vector<MuscleSpec>& specs) {
+std::vector<MuscleModel> makeMuscles(const Layout& layout, double scale, Jitter& jitter, const std::vector<MuscleSpec>& specs,
+                                     double minWidth = 0.0) {
   std::vector<MuscleModel> muscles;
   for (const MuscleSpec& spec : specs) {
     // Always draw the same numbers in the same order (determinism does not depend on muscleScale).
@@ -224,6 +229,16 @@ std::vector<MuscleModel> makeMuscles(const Layout& layout, double scale, Jitter&
         (silhouettesHidden(m, layout) ? lo : hi) = 0.5 * (lo + hi);
       }
       m.a = full * lo;
+      if (lo < minWidth) {
+        m.a = full * minWidth;
+        const double height = m.protrusion;
+        double qlo = 0.2, qhi = 1.0;
+        for (int it = 0; it < 30; ++it) {
+          m.protrusion = height * 0.5 * (qlo + qhi);
+          (silhouettesHidden(m, layout) ? qlo : qhi) = 0.5 * (qlo + qhi);
+        }
+        m.protrusion = height * qlo;
+      }
     }
     // Scale after narrowing, so sizes and protrusion are exactly proportional to muscleScale.
     m.a *= scale;

@@ -24,9 +24,10 @@ namespace {
 using namespace limb;
 
 constexpr double kUnionSoftness = 0.03;  // smooth-minimum width where parts meet (armpit, crotch, neck)
-constexpr double kDefaultCell = 0.0065;  // marching grid spacing (metres)
+constexpr double kDefaultCell = 0.009;   // marching grid spacing (metres): about 90k skin vertices for a biped
 constexpr double kWeightPower = 8.0;     // skin weights ~ (distance to the bone segment + kWeightOffset)^-power
 constexpr double kWeightOffset = 0.01;
+constexpr double kMinBellyWidth = 0.7;   // limb::makeMuscles: narrow a belly to at most this share, then lower it
 
 // ============================================================================
 // A straight part: a star-shaped generalized cylinder around an axis, rounded ends
@@ -176,9 +177,10 @@ void addLimbBones(Body& body, const Part& part, int parent, const std::vector<st
   }
 }
 
-// Muscles of a limb part, scaled; the part's bone keys name their bone.
-void addMuscles(Part& part, const std::vector<MuscleSpec>& specs, double muscleScale, Jitter& jitter) {
-  part.muscles = limb::makeMuscles(part.layout, muscleScale, jitter, specs);
+// Muscles of a limb part: the specs' sizes and heights grow with the limb's thickness (a thin limb has thin muscles).
+void addMuscles(Part& part, std::vector<MuscleSpec> specs, double thickness, double muscleScale, Jitter& jitter) {
+  for (MuscleSpec& m : specs) m.a *= thickness, m.b *= thickness, m.protrusion *= thickness;
+  part.muscles = limb::makeMuscles(part.layout, muscleScale, jitter, specs, kMinBellyWidth);
 }
 
 std::vector<double> cumulative(const std::vector<double>& lengths) {
@@ -187,10 +189,11 @@ std::vector<double> cumulative(const std::vector<double>& lengths) {
   return out;
 }
 
-// Arm muscles (the synthetic arm's, the deltoid starting past the shoulder joint so it is not inside the trunk).
+// Arm muscles: the synthetic arm's but for its deltoid, whose belly would lie half inside the trunk where the arm meets
+// it (the ground truth would hold a muscle no skin shows). Across each joint, bellies in line lie >= 60 degrees apart
+// around the limb (as the arm's), so that the truth's separate muscles are separate on the skin.
 const std::vector<MuscleSpec>& armSpecs() {
   static const std::vector<MuscleSpec> specs = {
-      {"deltoid", "upper_arm", 0.19, 0.36, 90, 150, 0.036, 0.022, 0.0110, 0.40},
       {"biceps", "upper_arm", 0.25, 0.47, 90, 90, 0.030, 0.020, 0.0110, 0.55},
       {"triceps", "upper_arm", 0.21, 0.46, 270, 270, 0.034, 0.017, 0.0090, 0.42},
       {"brachialis", "upper_arm", 0.34, 0.50, 148, 148, 0.018, 0.013, 0.0070, 0.60},
@@ -203,10 +206,10 @@ const std::vector<MuscleSpec>& armSpecs() {
 // Leg muscles in canonical leg x (hip 0, knee 0.44, ankle 0.86); theta 90 = anterior, 270 = posterior, 0 = lateral.
 const std::vector<MuscleSpec>& legSpecs() {
   static const std::vector<MuscleSpec> specs = {
-      {"quadriceps", "thigh", 0.13, 0.41, 95, 95, 0.045, 0.030, 0.0150, 0.55},
-      {"hamstrings", "thigh", 0.15, 0.41, 265, 265, 0.040, 0.026, 0.0130, 0.45},
-      {"gastrocnemius", "shin", 0.47, 0.68, 270, 270, 0.034, 0.022, 0.0120, 0.35},
-      {"tibialis_anterior", "shin", 0.48, 0.72, 55, 55, 0.020, 0.014, 0.0080, 0.35},
+      {"quadriceps", "thigh", 0.13, 0.41, 100, 100, 0.045, 0.030, 0.0150, 0.55},
+      {"hamstrings", "thigh", 0.15, 0.41, 260, 260, 0.040, 0.026, 0.0130, 0.45},
+      {"gastrocnemius", "shin", 0.47, 0.68, 320, 320, 0.034, 0.022, 0.0120, 0.35},
+      {"tibialis_anterior", "shin", 0.48, 0.72, 40, 40, 0.020, 0.014, 0.0080, 0.35},
   };
   return specs;
 }
@@ -217,8 +220,8 @@ const std::vector<MuscleSpec>& frontLegSpecs() {
   static const std::vector<MuscleSpec> specs = {
       {"triceps", "front_thigh", 0.23, 0.44, 270, 270, 0.034, 0.021, 0.0120, 0.40},
       {"biceps", "front_thigh", 0.25, 0.44, 90, 90, 0.026, 0.017, 0.0090, 0.55},
-      {"forearm_extensors", "front_shin", 0.47, 0.68, 80, 80, 0.024, 0.015, 0.0085, 0.35},
-      {"forearm_flexors", "front_shin", 0.47, 0.68, 250, 250, 0.024, 0.015, 0.0080, 0.35},
+      {"forearm_extensors", "front_shin", 0.47, 0.68, 30, 30, 0.024, 0.015, 0.0085, 0.35},
+      {"forearm_flexors", "front_shin", 0.47, 0.68, 210, 210, 0.024, 0.015, 0.0080, 0.35},
   };
   return specs;
 }
@@ -228,8 +231,8 @@ const std::vector<MuscleSpec>& hindLegSpecs() {
   static const std::vector<MuscleSpec> specs = {
       {"quadriceps", "thigh", 0.13, 0.33, 100, 100, 0.040, 0.027, 0.0140, 0.55},
       {"hamstrings", "thigh", 0.13, 0.33, 260, 260, 0.040, 0.027, 0.0140, 0.45},
-      {"gastrocnemius", "shin", 0.37, 0.56, 270, 270, 0.030, 0.019, 0.0110, 0.35},
-      {"tibialis_anterior", "shin", 0.37, 0.58, 80, 80, 0.020, 0.013, 0.0075, 0.35},
+      {"gastrocnemius", "shin", 0.37, 0.56, 320, 320, 0.030, 0.019, 0.0110, 0.35},
+      {"tibialis_anterior", "shin", 0.37, 0.58, 40, 40, 0.020, 0.013, 0.0075, 0.35},
   };
   return specs;
 }
@@ -240,11 +243,15 @@ Body makeBiped(Jitter& j, double muscleScale) {
   const double trunkW = j.factor(0.10), trunkD = j.factor(0.10);
   const double hipZ = 0.95 * size * j.factor(0.06), chestLen = 0.45 * size * j.factor(0.08);
   const double shoulderZ = hipZ + chestLen;
+  // The legs stand apart: a 6 cm gap between the thighs (twice the union's softness), so they meet only at the crotch.
+  const double legThick = size * j.factor(0.15);
+  const double hipX = 0.085 * legThick + kFat + 0.03 * size;
+  const double hipW = std::max(0.165 * trunkW, (hipX + 0.06 * size) / size);  // the hips are as wide as the legs
   // Trunk: vertical axis, from below the hips to the shoulders.
   {
     const double z0 = hipZ - 0.07 * size, z1 = shoulderZ + 0.04 * size;
     const std::vector<double> c = {0.0, 1.0}, jj = {0.0, z1 - z0};
-    const std::vector<Station> st = {{0.00, 0.150 * trunkW, 0.095 * trunkD}, {0.12, 0.165 * trunkW, 0.105 * trunkD},
+    const std::vector<Station> st = {{0.00, hipW - 0.015, 0.095 * trunkD}, {0.12, hipW, 0.105 * trunkD},
                                      {0.35, 0.135 * trunkW, 0.090 * trunkD}, {0.60, 0.150 * trunkW, 0.100 * trunkD},
                                      {0.85, 0.165 * trunkW, 0.105 * trunkD}, {1.00, 0.150 * trunkW, 0.085 * trunkD}};
     Part trunk = makePart("trunk", Vec3(0, 0, z0), Vec3::UnitZ(), Vec3(0, 1, 0), c, jj, st, size);
@@ -280,13 +287,11 @@ Body makeBiped(Jitter& j, double muscleScale) {
                                      {0.74, 0.029, 0.020}, {0.78, 0.038, 0.016}, {0.83, 0.040, 0.014}};
     // The synthetic arm is a right arm (+Y medial, -Y lateral): the left arm's frame is its mirror image.
     Part arm = makePart("arm", armRoot, armDir, Vec3(0, -1, 0), armCanonical, armJoints, st, armThick, true);
-    addMuscles(arm, armSpecs(), muscleScale, j);
+    addMuscles(arm, armSpecs(), armThick, muscleScale, j);
     body.parts.push_back(arm);
   }
   // Left leg: straight down from the hip joint, slightly outwards; the foot forward from the ankle.
-  const double hipX = 0.085 * size * trunkW;
   const double legLen = hipZ - 0.07 * size;  // hip joint to ankle
-  const double legThick = size * j.factor(0.15);
   const double kneeAt = 0.44 * j.factor(0.05) / 0.86;  // share of the leg length above the knee
   const std::vector<double> legCanonical = {0.0, 0.44, 0.86};
   const std::vector<double> legJoints = {0.0, kneeAt * legLen, legLen};
@@ -297,7 +302,7 @@ Body makeBiped(Jitter& j, double muscleScale) {
                                      {0.38, 0.056, 0.055}, {0.44, 0.050, 0.050}, {0.52, 0.050, 0.052},
                                      {0.62, 0.046, 0.048}, {0.76, 0.036, 0.036}, {0.86, 0.032, 0.032}};
     Part leg = makePart("leg", legRoot, legDir, Vec3(0, -1, 0), legCanonical, legJoints, st, legThick);
-    addMuscles(leg, legSpecs(), muscleScale, j);
+    addMuscles(leg, legSpecs(), legThick, muscleScale, j);
     body.parts.push_back(leg);
   }
   const Vec3 ankle = legRoot + legLen * legDir;
@@ -361,7 +366,7 @@ Body makeQuadruped(Jitter& j, double muscleScale) {
   }
   // Neck and head: up and forward from the chest, the head forward and down.
   const double neckLen = 0.32 * size * j.factor(0.10), headLen = 0.30 * size * j.factor(0.08);
-  const Vec3 neckBase(0, yChest + 0.05 * size, z + 0.06 * size);
+  const Vec3 neckBase(0, yChest + 0.12 * size, z + 0.06 * size);
   const Vec3 neckDir = Vec3(0, -0.75, 1.0).normalized();
   const Vec3 poll = neckBase + neckLen * neckDir;
   const Vec3 headDir = Vec3(0, -1.0, -0.35).normalized();
@@ -401,7 +406,7 @@ Body makeQuadruped(Jitter& j, double muscleScale) {
                                      {0.78, 0.030, 0.030}, {0.88, 0.034, 0.036}};
     Part leg = makePart("front_leg", frontRoot, Vec3(0.02, 0.0, -1.0), Vec3(0, -1, 0), frontCanonical, frontJoints, st,
                         frontThick);
-    addMuscles(leg, frontLegSpecs(), muscleScale, j);
+    addMuscles(leg, frontLegSpecs(), frontThick, muscleScale, j);
     body.parts.push_back(leg);
   }
   const Vec3 hindRoot(legX + 0.01 * size, yHip - 0.02 * size, z);
@@ -417,7 +422,7 @@ Body makeQuadruped(Jitter& j, double muscleScale) {
                                      {0.70, 0.030, 0.030}, {0.80, 0.034, 0.036}};
     Part leg = makePart("hind_leg", hindRoot, Vec3(0.02, 0.0, -1.0), Vec3(0, -1, 0), hindCanonical, hindJoints, st,
                         hindThick);
-    addMuscles(leg, hindLegSpecs(), muscleScale, j);
+    addMuscles(leg, hindLegSpecs(), hindThick, muscleScale, j);
     body.parts.push_back(leg);
   }
   // Bones.
