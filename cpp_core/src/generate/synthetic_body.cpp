@@ -146,10 +146,6 @@ struct BoneDef {
 struct Body {
   std::vector<Part> parts;
   std::vector<BoneDef> bones;
-  struct Limb {
-    int part = -1;                     // index of the left part (its mirror follows it)
-    std::vector<std::string> boneKeys; // bone keys (without side) of the muscles' `bone` field
-  };
   std::vector<int> limbParts;          // parts carrying muscles (left and right)
   std::vector<std::string> groupOf;    // per bone: mesh piece name when split
 };
@@ -672,7 +668,7 @@ SyntheticCharacter makeSyntheticBody(const SyntheticBodyOptions& options) {
   if (options.seed == 0) jitter = Jitter(0);
   Body body = options.kind == BodyKind::Biped ? makeBiped(jitter, options.muscleScale)
                                               : makeQuadruped(jitter, options.muscleScale);
-  // Right twins of the left limbs.
+  // Bounds of every part and of the right twins of the left limbs.
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
   for (Part& part : body.parts) {
     boundPart(part);
@@ -710,7 +706,7 @@ SyntheticCharacter makeSyntheticBody(const SyntheticBodyOptions& options) {
     c.sourceToWelded.resize(c.sourceVertexCount);
     for (int i = 0; i < c.sourceVertexCount; ++i) c.sourceToWelded[i] = i;
   } else {
-    // Pieces by the dominant bone's group of each triangle's first vertex... by majority of its three vertices.
+    // Each triangle goes to the piece (bone group) that most of its three vertices' dominant bones belong to.
     std::vector<std::string> groups;
     std::map<std::string, int> groupIndex;
     for (const std::string& gname : body.groupOf)
