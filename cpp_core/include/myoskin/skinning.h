@@ -185,6 +185,11 @@ std::vector<double> regionVolumeChange(const Points& rest, const Points& deforme
 Eigen::VectorXd localBulge(const Points& rest, const Triangles& triangles, const Points& deformed,
                            const SkinWeights& skeletonWeights, const std::vector<Mat4>& skeletonTransforms);
 
+// Number of pairs of triangles that intersect each other (neighbours sharing a vertex or an edge do not count),
+// among the triangles with faceMask[f] != 0 (#F; empty = all). Throws InputError on non-finite vertices, bad
+// indices or a mask of the wrong size.
+int selfIntersections(const Points& vertices, const Triangles& triangles, const std::vector<char>& faceMask = {});
+
 // ============================================================================
 // Point caches (PC2, Blender's Mesh Cache modifier)
 // ============================================================================
