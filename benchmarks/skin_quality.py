@@ -15,13 +15,26 @@ import numpy as np
 
 # Joints to bend, per rig naming: (label, moving bone, hinge bone, upper-segment bones, direction, degrees). The
 # moving bone and its subtree turn about its head by `degrees`, about the axis perpendicular to the hinge bone and
-# to `direction`: "forward"/"backward" along the character's facing (+Z), or "outward" (about the facing axis,
-# swinging away from the body's mirror plane X = 0).
+# to `direction`: "forward"/"backward" along the character's facing (bent_pose's `facing`, +Z for MakeHuman), or
+# "outward" (about the facing axis, swinging away from the body's mirror plane X = 0).
 MAKEHUMAN_JOINTS = [
     ("elbow flexion", "lowerarm01.L", "upperarm02.L", ("upperarm01.L", "upperarm02.L"), "forward", 120.0),
     ("knee flexion", "lowerleg01.L", "upperleg02.L", ("upperleg01.L", "upperleg02.L"), "backward", 120.0),
     ("shoulder abduction", "upperarm01.L", "upperarm01.L", ("shoulder01.L", "clavicle.L"), "outward", 120.0),
     ("hip flexion", "upperleg01.L", "upperleg02.L", ("pelvis.L",), "forward", 90.0),
+]
+# The generator's bodies (makeSyntheticBody: Z up, facing -Y, A-pose) and Quaternius' rigs (Y up, facing +Z, T-pose).
+SYNTHETIC_BODY_JOINTS = [
+    ("elbow flexion", "forearm.L", "upper_arm.L", ("upper_arm.L",), "forward", 120.0),
+    ("knee flexion", "shin.L", "thigh.L", ("thigh.L",), "backward", 120.0),
+    ("shoulder abduction", "upper_arm.L", "upper_arm.L", ("shoulder.L",), "outward", 90.0),
+    ("hip flexion", "thigh.L", "thigh.L", ("hips",), "forward", 90.0),
+]
+QUATERNIUS_JOINTS = [
+    ("elbow flexion", "LowerArm.L", "UpperArm.L", ("UpperArm.L",), "forward", 120.0),
+    ("knee flexion", "LowerLeg.L", "UpperLeg.L", ("UpperLeg.L",), "backward", 120.0),
+    ("shoulder abduction", "UpperArm.L", "UpperArm.L", ("Shoulder.L",), "outward", 60.0),
+    ("hip flexion", "UpperLeg.L", "UpperLeg.L", ("Hips",), "forward", 90.0),
 ]
 
 
@@ -32,7 +45,7 @@ def _rotation(axis, degrees):
     return np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * k @ k
 
 
-def bent_pose(character, bone, hinge, direction, degrees):
+def bent_pose(character, bone, hinge, direction, degrees, facing=(0.0, 0.0, 1.0)):
     """#B by 4 by 4 posed matrices: `bone` and its subtree turned about its head by `degrees`, about the axis
     perpendicular to the `hinge` bone and to `direction` (a world-space rotation; every other bone at rest)."""
     core_names = list(character.bone_names)
@@ -43,11 +56,11 @@ def bent_pose(character, bone, hinge, direction, degrees):
     h = core_names.index(hinge)
     d = tails[h] - heads[h]
     d = d / np.linalg.norm(d)
+    facing = np.asarray(facing, float)
     if direction in ("forward", "backward"):
-        target = np.array([0.0, 0.0, 1.0 if direction == "forward" else -1.0])
-        axis = np.cross(d, target)
+        axis = np.cross(d, facing if direction == "forward" else -facing)
     else:  # outward: about the facing axis, the tail swinging away from the mirror plane
-        axis = np.array([0.0, 0.0, 1.0 if heads[b][0] > 0 else -1.0])
+        axis = facing if heads[b][0] > 0 else -facing
     rot = _rotation(axis, degrees)
     joint = heads[b]
     moved = np.zeros(len(core_names), bool)
@@ -122,7 +135,7 @@ def band_triangles(rest, triangles, joint_rest, radius):
     return inside[triangles].all(1)
 
 
-def measure(core, character, muscles, joints, hybrid_options=None):
+def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 0.0, 1.0)):
     """Per joint: dict(label, lbs, dqs, blender_dqs, myoskin, myoskin_pv band changes, bulge and bulge_pv
     (m, over LBS), bulge_pv_over_dqs (m, over blender_dqs), limb_radius). blender_dqs is the core's preserve-volume skinner on the skeleton weights
     (Blender's DQS, a cross-check of the numpy dqs); myoskin_pv the same skinner on the hybrid weights."""
@@ -142,7 +155,7 @@ def measure(core, character, muscles, joints, hybrid_options=None):
     for label, bone, hinge, upper, direction, degrees in joints:
         if bone not in names:
             continue
-        pose = bent_pose(character, bone, hinge, direction, degrees)
+        pose = bent_pose(character, bone, hinge, direction, degrees, facing)
         skel = core.skeleton_transforms(character, pose)
         lbs = np.asarray(core.skin(rest, sj, sw, skel), float)
         dq = dqs(rest, sj, sw, skel)
@@ -154,9 +167,13 @@ def measure(core, character, muscles, joints, hybrid_options=None):
         b = names.index(bone)
         joint_rest = heads[b]
         joint_posed = pose[b][:3, 3]
-        band = {k: band_volume_change(rest, v, tris, joint_rest, joint_posed, 1.5 * limb_radius)
-                for k, v in (("lbs", lbs), ("dqs", dq), ("blender_dqs", blender_dq), ("myoskin", myo),
-                             ("myoskin_pv", myo_pv))}
+        try:
+            band = {k: band_volume_change(rest, v, tris, joint_rest, joint_posed, 1.5 * limb_radius)
+                    for k, v in (("lbs", lbs), ("dqs", dq), ("blender_dqs", blender_dq), ("myoskin", myo),
+                                 ("myoskin_pv", myo_pv))}
+        except ValueError:  # a joint deep inside the body (a hip inside a wide pelvis): no band to measure
+            print(f"{label}: no skin within 1.5 limb radii of the joint, not measured")
+            continue
         mask = band_triangles(rest, tris, joint_rest, 1.5 * limb_radius)
         at_rest = core.self_intersections(rest, tris, mask)
         crossings = {"crossings_" + k: core.self_intersections(v, tris, mask) - at_rest

@@ -174,6 +174,18 @@ def preserve_volume_of(skin, arm):
     return bool(mod.use_deform_preserve_volume) if mod is not None else bool(rig_state(arm).preserve_volume)
 
 
+def skinner_for(skin, arm, live_rig, rest, joints, weights):
+    """The core's skinner for `skin` in the mode Blender skins it with (its Armature modifier's Preserve
+    Volume): rest (#V by 3, armature space), joints/weights over the live rig's bones + muscle joints."""
+    core = core_loader.core()
+    count = len(live_rig.bone_names) + len(live_rig.joint_names)
+    if preserve_volume_of(skin, arm):
+        return core.Skinner(rest, joints, weights, count, preserve_volume=True,
+                            rest_matrices=core.combined_rest_matrices(live_rig.character, live_rig.rig),
+                            dq_scale=dq_scale())
+    return core.Skinner(rest, joints, weights, count)
+
+
 def bound_skins(arm):
     """The meshes a bind changed: those named in the bind record, the character's recorded meshes, and any
     mesh of the armature holding a weight backup (e.g. renamed since), in that order, each once."""

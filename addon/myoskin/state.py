@@ -173,10 +173,11 @@ class MyoskinRigState(bpy.types.PropertyGroup):
                               description="When a locator of a bound muscle moves, bind again once it is still, "
                                           "so the muscle joints follow (Object Mode)")
     preserve_volume: BoolProperty(
-        name="Preserve Volume", default=False, update=_preserve_volume_changed,
+        name="Preserve Volume", default=True, update=_preserve_volume_changed,
         description="Skin with the Armature modifier's Preserve Volume (dual quaternions) on the skeleton and "
-                    "the muscle joints together; Bind sets it on the character's Armature modifiers (at once "
-                    "when bound) and Bake PC2 computes the same mode in the core")
+                    "the muscle joints together, so bent joints keep their volume; Bind sets it on the "
+                    "character's Armature modifiers (at once when bound) and Bake PC2 computes the same mode "
+                    "in the core. Off: linear blending, as the paper")
     max_influences: IntProperty(name="Max Influences", default=8, min=1, max=16,
                                 description="Bones and muscle joints per skin vertex after Bind (the largest "
                                             "are kept and renormalised; 4 is what game engines take)")

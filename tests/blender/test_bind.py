@@ -73,7 +73,8 @@ def joint_names(state):
 
 
 def core_skin(arm, skin, state):
-    """The core's Equation 3 for the current evaluated skeleton pose, in the mesh object's space."""
+    """The core's Equation 3 for the current evaluated skeleton pose, in the mesh object's space, in the mode
+    Blender skins it with (Preserve Volume by default)."""
     live = module("live")
     rig = live.live_rig(arm)
     pose = live.evaluated_pose(arm, rig, bpy.context.evaluated_depsgraph_get())
@@ -85,7 +86,7 @@ def core_skin(arm, skin, state):
     joint_matrices = rig.rig.evaluate(pose)["joint_matrices"]
     transforms = np.concatenate([pose @ np.linalg.inv(np.asarray(rig.character.bone_rest)),
                                  joint_matrices @ np.linalg.inv(np.asarray(rig.rig.bind_matrices))])
-    return core().skin(rest, joints, weights, transforms)
+    return module("binding").skinner_for(skin, arm, rig, rest, joints, weights).deform(transforms)
 
 
 # ------------------------------------------------------------------------------------------------

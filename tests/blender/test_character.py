@@ -285,7 +285,8 @@ def test_extract_bind_unbind_a_character_in_three_meshes():
     for m, p in zip(meshes, posed):
         joints, weights = rig_io.read_combined_weights(m, rig.bone_names + rig.joint_names)
         to_arm = io.mesh_to_armature_matrix(m, arm)
-        skinned = core().skin(transform(to_arm, io.mesh_vertices(m.data)), joints, weights, transforms)
+        rest = transform(to_arm, io.mesh_vertices(m.data))
+        skinned = module("binding").skinner_for(m, arm, rig, rest, joints, weights).deform(transforms)
         err = float(np.abs(transform(arm.matrix_world, skinned) - p).max())
         assert err < 1e-5 * size, f"{m.name}: Blender differs from the core by {err:.3g}"
     gap = max(float(np.linalg.norm(posed[a][i] - posed[b][j])) for a, i, b, j in pairs)

@@ -192,12 +192,7 @@ def bake_skin_frames(context, skins, arm, start, end):
         rest = blender_io.mesh_vertices(skin.data) @ to_arm[:3, :3].T + to_arm[:3, 3]
         # The mode Blender skins this mesh with (its Armature modifier's Preserve Volume), so the PC2 equals
         # Blender's skin; the transforms and rest matrices are in armature space, as the modifier's.
-        if binding.preserve_volume_of(skin, arm):
-            skinner = core.Skinner(rest, joints, weights, len(names), preserve_volume=True,
-                                   rest_matrices=core.combined_rest_matrices(rig.character, rig.rig),
-                                   dq_scale=binding.dq_scale())
-        else:
-            skinner = core.Skinner(rest, joints, weights, len(names))
+        skinner = binding.skinner_for(skin, arm, rig, rest, joints, weights)
         meshes.append((skinner, np.linalg.inv(to_arm), np.empty((end - start + 1, len(rest), 3), dtype=np.float32)))
     rest_bones = np.asarray(rig.character.bone_rest)
     bind_inv = np.linalg.inv(np.asarray(rig.rig.bind_matrices))
