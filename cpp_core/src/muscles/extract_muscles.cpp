@@ -8,6 +8,7 @@
 #include <map>
 #include <numeric>
 
+#include "muscles/muscle_names.h"
 #include "muscles/muscle_util.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
@@ -498,12 +499,25 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
         if (!kept[ids[j]].forced) keep[ids[j]] = 0, ++rep.droppedRegionLimit;
     }
   }
+  // Names: anatomical where the muscle's place identifies it ("biceps.L", a second one "biceps_2.L"), else the
+  // bone and its side ("lowerarm01.L_xpos_1").
   std::map<std::string, int> nameCount;
+  const detail::BodyFrame frame = detail::bodyFrame(sk, roles, twist);
   for (size_t i = 0; i < kept.size(); ++i) {
     if (!keep[i]) continue;
     Muscle& m = muscles[i];
     const Bone& bone = sk.bones[kept[i].bone];
     const Vec3 mid = m.sections[m.sections.size() / 2].center;
+    const std::string anatomical = detail::anatomicalName(m, kept[i].bone, kept[i].family, sk, frame);
+    if (!anatomical.empty()) {
+      const size_t dot = anatomical.find('.');
+      const std::string stem = anatomical.substr(0, dot), side = dot == std::string::npos ? "" : anatomical.substr(dot);
+      const int k = ++nameCount[anatomical];
+      m.name = k == 1 ? anatomical : stem + "_" + std::to_string(k) + side;
+      if (kept[i].forced) ++rep.forced;
+      result.muscles.push_back(std::move(m));
+      continue;
+    }
     const std::string base = bone.name + "_" + sideName(bone, mid);
     m.name = base + "_" + std::to_string(++nameCount[base]);
     if (kept[i].forced) ++rep.forced;

@@ -1,0 +1,149 @@
+// Anatomical muscle names: the body's axes from its legs, feet and neck, then each muscle's limb segment and its
+// side of the bone (front / back along the body's forward axis).
+#include "muscles/muscle_names.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "muscles/muscle_util.h"
+
+namespace myoskin::detail {
+
+namespace {
+
+// v with its component along unit axis a removed.
+Vec3 across(const Vec3& v, const Vec3& a) { return v - v.dot(a) * a; }
+
+}  // namespace
+
+BodyFrame bodyFrame(const Skeleton& sk, const std::vector<BoneRole>& roles, const std::vector<char>& twist) {
+  const int n = sk.numBones();
+  BodyFrame f;
+  f.limb.assign(n, 0);
+  f.segment.assign(n, -1);
+  if (static_cast<int>(roles.size()) != n || static_cast<int>(twist.size()) != n) return f;
+  auto isLimb = [&](int b) { return b >= 0 && roles[b] == BoneRole::Limb; };
+  // Each limb's root, and how deep in the tree the trunk bone it hangs from lies: the legs hang from the trunk's
+  // root end (the pelvis), the arms (front legs) further along it; with one depth only, a shoulder girdle says arm.
+  auto depth = [&](int b) {
+    int d = 0;
+    for (; b >= 0; b = sk.bones[b].parent) ++d;
+    return d;
+  };
+  std::vector<int> roots, rootOf(n, -1), attachDepth(n, 0);
+  for (int b = 0; b < n; ++b) {
+    if (!isLimb(b)) continue;
+    int root = b, segment = 0;
+    for (; isLimb(sk.bones[root].parent); root = sk.bones[root].parent) segment += !twist[root];
+    rootOf[b] = root;
+    f.segment[b] = segment;
+    if (root != b) continue;
+    roots.push_back(b);
+    int attach = sk.bones[b].parent;  // the first trunk bone above it, else the skeleton's root (-1: none)
+    while (attach >= 0 && roles[attach] != BoneRole::Spine && roles[attach] != BoneRole::Pelvis &&
+           roles[attach] != BoneRole::Neck && sk.bones[attach].parent >= 0)
+      attach = sk.bones[attach].parent;
+    attachDepth[b] = depth(attach);
+  }
+  // Limbs that hang from no trunk bone (IK or helper chains beside the body) are not the body's limbs.
+  std::vector<int> body;
+  for (int r : roots)
+    if (attachDepth[r] > 0) body.push_back(r);
+  if (!body.empty()) roots.swap(body);
+  if (roots.empty()) return f;
+  int shallow = attachDepth[roots[0]], deep = shallow;
+  for (int r : roots) shallow = std::min(shallow, attachDepth[r]), deep = std::max(deep, attachDepth[r]);
+  for (int b = 0; b < n; ++b) {
+    if (rootOf[b] < 0 || std::find(roots.begin(), roots.end(), rootOf[b]) == roots.end()) continue;
+    const int r = rootOf[b], girdle = sk.bones[r].parent;
+    f.limb[b] = deep > shallow ? (attachDepth[r] == shallow ? 2 : 1)
+                               : (girdle >= 0 && roles[girdle] == BoneRole::Shoulder ? 1 : 2);
+  }
+  Vec3 up = Vec3::Zero(), feet = Vec3::Zero(), centre = Vec3::Zero();
+  double footLength = 0.0;
+  for (int r : roots) centre += sk.bones[r].head;
+  f.centre = centre / static_cast<double>(roots.size());
+  for (int r : roots) {
+    if (f.limb[r] != 2) continue;
+    int last = r;  // down the chain through its longest limb continuation
+    for (bool more = true; more;) {
+      more = false;
+      for (int c : sk.children(last))
+        if (isLimb(c)) {
+          last = c, more = true;
+          break;
+        }
+    }
+    up += sk.bones[r].head - sk.bones[last].tail;
+    for (int c : sk.children(last)) {
+      feet += sk.bones[c].tail - sk.bones[c].head;
+      footLength += sk.bones[c].length();
+    }
+  }
+  if (!(up.norm() > 0)) return f;
+  f.up = up.normalized();
+  Vec3 forward = across(feet, f.up);
+  if (!(footLength > 0) || forward.norm() < 0.3 * footLength) {  // hooves point down: the neck leans forward
+    Vec3 neck = Vec3::Zero();
+    double neckLength = 0.0;
+    for (int b = 0; b < n; ++b)
+      if (roles[b] == BoneRole::Neck) neck += sk.bones[b].tail - sk.bones[b].head, neckLength += sk.bones[b].length();
+    forward = across(neck, f.up);
+    if (!(neckLength > 0) || forward.norm() < 0.3 * neckLength) return f;
+  }
+  f.forward = forward.normalized();
+  f.left = f.up.cross(f.forward);
+  f.valid = true;
+  return f;
+}
+
+std::string anatomicalName(const Muscle& muscle, int bone, const std::string& family, const Skeleton& sk,
+                           const BodyFrame& frame) {
+  if (!frame.valid || muscle.sections.empty() || bone < 0 || bone >= sk.numBones()) return "";
+  const Vec3 p = muscle.sections[muscle.sections.size() / 2].center;
+  double radius = 0.0;
+  for (const MuscleSection& s : muscle.sections) radius += std::sqrt(std::max(s.a * s.b, 0.0));
+  radius /= static_cast<double>(muscle.sections.size());
+  const double lateral = (p - frame.centre).dot(frame.left);
+  const std::string side = std::abs(lateral) < 0.5 * radius ? "" : lateral > 0 ? ".L" : ".R";
+  const Bone& b = sk.bones[bone];
+  if (family == "shoulder") return "deltoid" + side;
+  if (family == "limb") {
+    const Vec3 axis = (b.tail - b.head).normalized();
+    const Vec3 out = across(p - closestOnSegment(p, b.head, b.tail), axis), ahead = across(frame.forward, axis);
+    if (out.norm() < 1e-12 || ahead.norm() < 0.5) return "";  // the bone points forward: no front or back
+    const double c = out.normalized().dot(ahead.normalized());
+    const int front = c > 0.5 ? 1 : c < -0.5 ? -1 : 0;
+    const int limb = frame.limb[bone], segment = frame.segment[bone];
+    if (front == 0 || segment > 1) return "";
+    if (limb == 1 && segment == 0) return (front > 0 ? "biceps" : "triceps") + side;
+    if (limb == 2 && segment == 0) return (front > 0 ? "quadriceps" : "hamstrings") + side;
+    if (limb == 2 && segment == 1) return (front > 0 ? "tibialis_anterior" : "calf") + side;
+    return "";  // forearms: which side is the flexors' depends on the hand's turn
+  }
+  if (family == "abdomen") {
+    // The trunk between the legs' and the arms' roots: in front, pectorals in its upper 40 %, abdominals below;
+    // behind, the back.
+    Vec3 arms = Vec3::Zero(), legs = Vec3::Zero();
+    int na = 0, nl = 0;
+    for (int x = 0; x < sk.numBones(); ++x) {
+      if (frame.segment[x] != 0 || (sk.bones[x].parent >= 0 && frame.segment[sk.bones[x].parent] == 0)) continue;
+      (frame.limb[x] == 1 ? arms : legs) += sk.bones[x].head;
+      (frame.limb[x] == 1 ? na : nl) += 1;
+    }
+    const Vec3 out = across(p - frame.centre, frame.up);
+    if (na == 0 || nl == 0 || out.norm() < 1e-12) return "";
+    const Vec3 rise = arms / na - legs / nl;  // from the hips to the shoulders
+    // Only an upright trunk (a quadruped's runs along its forward axis: its front is its underside).
+    if (!(rise.dot(frame.up) > std::abs(rise.dot(frame.forward)))) return "";
+    const double c = out.normalized().dot(frame.forward);
+    const double height = (p - legs / nl).dot(frame.up) / rise.dot(frame.up);
+    if (height < 0.0 || height > 1.0) return "";  // below the hips or above the shoulders
+    if (c < -0.5) return "back" + side;
+    if (c > 0.5) return (height > 0.6 ? "pectoral" : "abdominal") + side;
+    return "";
+  }
+  return "";
+}
+
+}  // namespace myoskin::detail

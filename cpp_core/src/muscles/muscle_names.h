@@ -1,0 +1,32 @@
+// Anatomical muscle names from where a muscle lies on the body (internal to extraction's naming stage).
+#pragma once
+#include <string>
+#include <vector>
+
+#include "myoskin/muscle.h"
+#include "myoskin/sections.h"
+#include "myoskin/skeleton.h"
+
+namespace myoskin::detail {
+
+// The body's axes and its limbs, from the skeleton's roles: legs are the limb chains that hang from the trunk's
+// root end (the pelvis), arms (a quadruped's front legs) those further along the trunk.
+// up: from the legs' ends to their roots; forward: the feet's direction across up (or, when the feet point
+// down as hooves do, the neck's); left = up x forward. valid is false when there are no legs or no forward.
+struct BodyFrame {
+  bool valid = false;
+  Vec3 up = Vec3::Zero(), forward = Vec3::Zero(), left = Vec3::Zero();
+  Vec3 centre = Vec3::Zero();  // the midpoint of the limb roots (on the mirror plane of a symmetric rig)
+  std::vector<int> limb;       // #B: 0 none, 1 arm, 2 leg
+  std::vector<int> segment;    // #B: segment index from the limb's root (0 = upper arm / thigh), -1 none
+};
+
+BodyFrame bodyFrame(const Skeleton& skeleton, const std::vector<BoneRole>& roles, const std::vector<char>& twist);
+
+// "biceps.L", "quadriceps.R", "pectoral.L", ... for a muscle whose place identifies it (its middle section's
+// side of the bone its chain was cut along, `bone`, and the plane family); "" otherwise (the caller names it by
+// region). Front / back: within 60 degrees of the body's forward axis around the bone.
+std::string anatomicalName(const Muscle& muscle, int bone, const std::string& family, const Skeleton& skeleton,
+                           const BodyFrame& frame);
+
+}  // namespace myoskin::detail
