@@ -56,7 +56,8 @@ def check_backup(skin):
             if index < 0 or len(ids) != len(ws) or (len(ids) and (ids.min() < 0 or ids.max() >= count
                                                                     or np.any(ids != np.round(ids)))) \
                     or not np.all(np.isfinite(ws)):
-                problem = f"group '{name}' names vertices outside the mesh, or weights that are not numbers or not one per vertex"
+                problem = (f"group '{name}' names vertices outside the mesh, or weights that are not numbers or "
+                           f"not one per vertex")
                 break
     if problem:
         raise ValueError(f"The weight backup of '{skin.name}' (its '{BACKUP_KEY}' property) is damaged: {problem} "
