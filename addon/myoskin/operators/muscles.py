@@ -1,6 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Muscle operators: extract, add from a marked region, remove, mirror, select, refresh, snap locators.
 Small: convert data (blender_io, muscle_io), call the core, report."""
+import traceback
+
 import bpy
 import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
@@ -142,7 +144,6 @@ class _MuscleOperator:
             self.report({'ERROR'}, str(e))
             return {'CANCELLED'}
         except Exception as e:  # noqa: BLE001  (a bug: say so in the UI instead of a traceback)
-            import traceback
             traceback.print_exc()
             self.report({'ERROR'}, f"{self.bl_label} failed unexpectedly ({type(e).__name__}: {e}); nothing more "
                                    f"was done. Please report this with the console output")
