@@ -19,6 +19,7 @@ from .state import rig_skins, rig_state, set_rig_skins
 
 
 BACKUP_KEY = "myoskin_original_weights"
+ADDED_KEY = "myoskin_added_groups"  # ID property on a bound mesh: the skeleton bones' groups Bind created
 
 
 def backup_weights(skin):
@@ -32,6 +33,12 @@ def backup_weights(skin):
             members[g.group][1].append(g.weight)
     skin[BACKUP_KEY] = {g.name: {"index": g.index, "vertices": ids, "weights": ws}
                         for g, (ids, ws) in zip(skin.vertex_groups, members)}
+
+
+def note_added_groups(skin, bone_names):
+    """Remember which of the skeleton's bones had no vertex group on the skin before Bind (Bind writes one
+    per bone; Unbind removes those again, so the mesh gets back exactly the groups it had)."""
+    skin[ADDED_KEY] = [n for n in bone_names if n not in skin.vertex_groups]
 
 
 def check_backup(skin):
@@ -73,6 +80,14 @@ def restore_weights(skin):
         return False
     everyone = list(range(len(skin.data.vertices)))
     names = set(backup.keys())
+    added = skin.get(ADDED_KEY)
+    if added is not None:  # the groups Bind created for bones that had none (a damaged list: none removed)
+        added = [n for n in added if isinstance(n, str)] if not isinstance(added, str) else []
+        for n in added:
+            group = skin.vertex_groups.get(n)
+            if group is not None and n not in names:
+                skin.vertex_groups.remove(group)
+        del skin[ADDED_KEY]
     for name, entry in sorted(backup.items(), key=lambda kv: kv[1]["index"]):
         group = skin.vertex_groups.get(name)
         if group is None:  # renamed with its bone since the bind (a group keeps its index): restore into it
@@ -134,6 +149,7 @@ def bind(context, skins, arm):
     names = list(character.bone_names)
     for skin in skins:
         backup_weights(skin)
+        note_added_groups(skin, names)
     try:
         rig_io.create_rig_bones(arm, rig, names)
         for skin, mesh_joints, mesh_weights in zip(skins, combined.split(joints), combined.split(weights)):

@@ -374,9 +374,10 @@ def _new_mesh(name, vertices, triangles):
 
 
 def write_vertex_weights(mesh_obj, bone_names, joints, weights):
-    """One vertex group per bone (group index = bone index) filled from #V by K joints/weights.
-    VertexGroup.add takes one weight for many vertices, so vertices are batched by equal weight."""
-    groups = [mesh_obj.vertex_groups.new(name=n) for n in bone_names]
+    """One vertex group per bone filled from #V by K joints/weights (a group of that name already there is
+    added to, in its place; on a mesh without groups, group index = bone index). VertexGroup.add takes one
+    weight for many vertices, so vertices are batched by equal weight."""
+    groups = [mesh_obj.vertex_groups.get(n) or mesh_obj.vertex_groups.new(name=n) for n in bone_names]
     joints = np.asarray(joints)
     weights = np.asarray(weights, dtype=np.float64)
     if joints.size == 0:

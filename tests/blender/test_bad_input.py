@@ -130,6 +130,7 @@ def snapshot(*objs):
             me.loops.foreach_get("vertex_index", loops)
             entry.update(co=co.tobytes(), loops=loops.tobytes(), polygons=len(me.polygons),
                          groups=vertex_groups(o) if len(me.vertices) <= 200000 else len(o.vertex_groups),
+                         group_order=[g.name for g in o.vertex_groups],
                          modifiers=[(m.name, m.type, getattr(getattr(m, "object", None), "name", None))
                                     for m in o.modifiers],
                          shape_keys=[(k.name, np.array([p.co[:] for p in k.data]).tobytes())
@@ -585,6 +586,28 @@ def test_thousand_bone_armature():
         assert_unchanged(before, arm, skin)
 
 
+def test_arm_with_a_thousand_bones_binds():
+    """The synthetic arm with 996 more bones (a chain off the hand, deforming nothing): 1,000 bones through
+    Extract, Bind, live update and Unbind."""
+    arm, skin = synthetic_arm()
+    bpy.context.view_layer.objects.active = arm
+    bpy.ops.object.mode_set(mode='EDIT')
+    parent = arm.data.edit_bones["hand"]
+    for i in range(1000 - len(arm.data.edit_bones)):
+        eb = arm.data.edit_bones.new(f"extra{i:03d}")
+        eb.head = parent.tail
+        eb.tail = parent.tail + (parent.tail - parent.head).normalized() * 0.01
+        eb.parent = parent
+        parent = eb
+    bpy.ops.object.mode_set(mode='OBJECT')
+    assert len(arm.data.bones) == 1000
+    start = time.perf_counter()
+    status, message = extract_then_bind(arm, skin)
+    print(f"  arm + 996 bones: extract, bind, pose, unbind in {time.perf_counter() - start:.1f} s: {message[:120]}")
+    assert status == 'FINISHED', message
+    assert_clear(message, "Extracted")
+
+
 def test_zero_length_and_tiny_bones():
     # Blender itself deletes a zero-length bone when Edit Mode ends; a 10 micrometre bone stays: both handled
     arm, skin = tube_character("Tiny", bones=2)
@@ -663,6 +686,7 @@ def test_modifier_stacks_and_shape_keys():
         key = skin.shape_key_add(name="Flex")
         key.data[10].co.x += 0.01
         key.value = 0.5
+        skin.vertex_groups.new(name="Mask").add(list(range(100)), 1.0, 'REPLACE')  # a group of no bone, last
         skin.modifiers.remove(skin.modifiers["Armature"])
         for kind in stack:  # the stack in this order (no operator: each one evaluates the whole scene)
             mod = skin.modifiers.new(kind.title(), kind)
