@@ -45,8 +45,9 @@ def test_undo_and_redo_after_bind_in_a_window():
 
 def test_undo_and_redo_during_live_update_and_of_a_bake_in_a_window():
     """Issue 15's bad-input matrix, the part that needs a window: Undo and Redo in the middle of playback of a
-    bound, live rig (posed by hand between two undo steps), then Undo of a Bake: the skin is exactly where it
-    was at each step, playback goes on, live update is on again and no handler reported an error."""
+    bound, live rig (posed by hand between two undo steps), then Undo of a Bake, then an F12 render while
+    playback runs: the skin is exactly where it was at each step, playback goes on, live update is on again
+    and no handler reported an error."""
     if runner.is_bpy_module():
         runner.skip("the bpy module has no window (Undo in a window is tested with the Blender executables)")
     if shutil.which("xvfb-run") is None:
@@ -70,6 +71,9 @@ def test_undo_and_redo_during_live_update_and_of_a_bake_in_a_window():
     assert seen["undo_bake"] == ["FINISHED"] and seen["live_after_undo_bake"] is True, seen
     assert seen["baked_curves_after_undo"] == 0, seen
     assert seen["after_undo_bake_frame4"] < 1e-5, seen
+    assert seen["play"] == ["FINISHED"] and seen["playing"], seen
+    assert seen["render"] == ["FINISHED"] and seen["live_after_render"] is True, seen
+    assert seen["after_render_frame4"] < 1e-5, seen
     assert seen["errors"] == "", seen
 
 

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Run by tests/blender/test_undo.py inside a windowed Blender (under xvfb-run): Undo and Redo in the middle
-of live update (a bound rig playing its animation, posed by hand between two undo steps), and Undo of a
-Bake; writes what it saw as JSON to the path after "--"."""
+of live update (a bound rig playing its animation, posed by hand between two undo steps), Undo of a Bake,
+then an F12 render (Cycles, 16 x 16) while playback runs; writes what it saw as JSON to the path after "--"."""
 import json
 import sys
 
@@ -117,8 +117,43 @@ def undo_bake():
             scene.frame_set(frame)
         seen["after_undo_bake_frame4"] = float(np.abs(skin_positions(skin_name) - reference["frame4"]).max())
         seen["errors"] += error_of(arm_name)
+        # F12 while playback runs: start playing, render a frame from the next timer
+        scene.render.engine = 'CYCLES'
+        scene.cycles.samples = 1
+        scene.cycles.use_denoising = False
+        scene.render.resolution_x = scene.render.resolution_y = 16
+        scene.render.resolution_percentage = 100
+        camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+        scene.collection.objects.link(camera)
+        camera.location, camera.rotation_euler = (0.0, -3.0, 0.3), (1.5708, 0.0, 0.0)
+        scene.camera = camera
+        scene.frame_start, scene.frame_end = 1, 10
+        with view3d():
+            seen["play"] = list(bpy.ops.screen.animation_play())
+        seen["frames_seen"] = [scene.frame_current]
     except Exception as e:  # noqa: BLE001
         return finish(f"undo bake: {e}")
+    bpy.app.timers.register(render_while_playing, first_interval=0.5)
+
+
+def render_while_playing():
+    try:
+        skin_name, arm_name = seen["names"]
+        scene = bpy.context.scene
+        screen = bpy.context.window_manager.windows[0].screen
+        seen["playing"] = bool(screen.is_animation_playing)
+        seen["frames_seen"].append(scene.frame_current)
+        with view3d():
+            seen["render"] = list(bpy.ops.render.render(write_still=False))
+        seen["frames_seen"].append(scene.frame_current)
+        with view3d():
+            bpy.ops.screen.animation_cancel(restore_frame=False)
+        scene.frame_set(4)
+        seen["after_render_frame4"] = float(np.abs(skin_positions(skin_name) - reference["frame4"]).max())
+        seen["live_after_render"] = bpy.data.objects[arm_name].myoskin.live
+        seen["errors"] += error_of(arm_name)
+    except Exception as e:  # noqa: BLE001
+        return finish(f"render while playing: {e}")
     finish()
 
 
