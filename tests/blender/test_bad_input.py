@@ -325,7 +325,7 @@ def test_damaged_glb_files_are_refused_by_the_core():
     assert refused >= 6, f"only {refused} of {len(files)} damaged files refused"
 
 
-def test_batch_with_damaged_glb_says_error_and_writes_nothing():
+def test_batch_with_damaged_files_says_error_and_writes_nothing():
     files = damaged_files()
     assert files
     chosen = [(label, path) for label, path in files if label in ("empty", "truncated_json", "truncated_bin",
@@ -342,6 +342,20 @@ def test_batch_with_damaged_glb_says_error_and_writes_nothing():
         assert lines[0].startswith(f"myoskin batch: error: cannot read {path}"), lines[0]
         print(f"  {label}: {lines[0]}")
         assert not os.path.exists(out), label
+    # a .blend cut in half (Blender's own reader says why)
+    synthetic_arm()
+    whole, half = os.path.join(TMP, "whole.blend"), os.path.join(TMP, "half.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=whole, compress=False, copy=True)
+    with open(whole, "rb") as f:
+        data = f.read()
+    with open(half, "wb") as f:
+        f.write(data[:len(data) // 2])
+    code, log = batch("--input", half, "extract", "-o", os.path.join(TMP, "half_out.blend"))
+    lines = [ln for ln in log.splitlines() if ln.startswith("myoskin batch: error:")]
+    assert code == 1 and len(lines) == 1 and "Traceback" not in log, log[-3000:]
+    assert lines[0].startswith(f"myoskin batch: error: cannot read {half}"), lines[0]
+    assert not os.path.exists(os.path.join(TMP, "half_out.blend"))
+    print(f"  half .blend: {lines[0]}")
 
 
 # ------------------------------------------------------------------------------------------------
