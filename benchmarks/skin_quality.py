@@ -5,7 +5,9 @@ weights and transforms, muscle joints included).
 
 - band: the skin within 1.5 limb radii of the joint; its volume is the cone volume of its triangles from the
   joint's posed position (rigid motion of either side keeps it), reported as the change from rest;
-- bulge: the largest outward move of the upper segment's skin over the LBS skin, along the LBS normals.
+- bulge: the largest outward move of the upper segment's skin over the LBS skin, along the LBS normals;
+- crossings: pairs of band triangles that pass through each other (the skin folding through itself), counted
+  by the core (CGAL); at rest the count is subtracted.
 
 Used by benchmarks/bench_skin_quality.py (the table) and the Python tests (the targets).
 """
@@ -114,6 +116,12 @@ def band_volume_change(rest, posed, triangles, joint_rest, joint_posed, radius):
     return (cone(posed, joint_posed) - v0) / abs(v0)
 
 
+def band_triangles(rest, triangles, joint_rest, radius):
+    """#F bools: the triangles whose three vertices lie within `radius` of the joint at rest."""
+    inside = np.linalg.norm(rest - joint_rest, axis=1) <= radius
+    return inside[triangles].all(1)
+
+
 def measure(core, character, muscles, joints, hybrid_options=None):
     """Per joint: dict(label, lbs, dqs, blender_dqs, myoskin, myoskin_pv band changes, bulge and bulge_pv
     (m, over LBS), bulge_pv_over_dqs (m, over blender_dqs), limb_radius). blender_dqs is the core's preserve-volume skinner on the skeleton weights
@@ -149,6 +157,10 @@ def measure(core, character, muscles, joints, hybrid_options=None):
         band = {k: band_volume_change(rest, v, tris, joint_rest, joint_posed, 1.5 * limb_radius)
                 for k, v in (("lbs", lbs), ("dqs", dq), ("blender_dqs", blender_dq), ("myoskin", myo),
                              ("myoskin_pv", myo_pv))}
+        mask = band_triangles(rest, tris, joint_rest, 1.5 * limb_radius)
+        at_rest = core.self_intersections(rest, tris, mask)
+        crossings = {"crossings_" + k: core.self_intersections(v, tris, mask) - at_rest
+                     for k, v in (("lbs", lbs), ("dqs", blender_dq), ("myoskin", myo), ("myoskin_pv", myo_pv))}
         upper_ids = [names.index(u) for u in upper if u in names]
         dominant = sj[np.arange(len(sj)), np.argmax(sw, axis=1)]
         on_upper = np.isin(dominant, upper_ids)
@@ -160,5 +172,6 @@ def measure(core, character, muscles, joints, hybrid_options=None):
         # bulge in that mode is measured over the skeleton-only DQS skin.
         dq_normals = np.asarray(core.vertex_normals(blender_dq, tris))
         rows.append(dict(label=label, bulge=bulge_of(myo), bulge_pv=bulge_of(myo_pv),
-                         bulge_pv_over_dqs=bulge_of(myo_pv, blender_dq, dq_normals), limb_radius=limb_radius, **band))
+                         bulge_pv_over_dqs=bulge_of(myo_pv, blender_dq, dq_normals), limb_radius=limb_radius, **band,
+                         **crossings))
     return rows

@@ -2,6 +2,7 @@
 // Arrays are checked here so a wrong shape is a ValueError naming the argument (never a crash); long
 // calls release the GIL.
 #include <memory>
+#include <optional>
 
 #include "bindings.h"
 #include "myoskin/character.h"
@@ -290,6 +291,23 @@ void bindSkinning(py::module_& m) {
       py::arg("rest"), py::arg("deformed"), py::arg("triangles"), py::arg("labels"), py::arg("num_regions"),
       "Per-region relative volume change; labels #V in [-1, num_regions) (a triangle counts when its three "
       "vertices share a label).");
+  m.def(
+      "self_intersections",
+      [](const DoubleArray& vertices, const IntArray& triangles, std::optional<py::array_t<bool>> faceMask) {
+        const Points v = pointsArg(vertices, "vertices");
+        const Triangles t = trianglesArg(triangles, "triangles", v.rows());
+        std::vector<char> mask;
+        if (faceMask) {
+          if (faceMask->ndim() != 1) throw InputError("face_mask must be #F, got shape " + shapeOf(*faceMask));
+          const auto m = faceMask->unchecked<1>();
+          for (py::ssize_t f = 0; f < m.shape(0); ++f) mask.push_back(m(f) ? 1 : 0);
+        }
+        py::gil_scoped_release release;
+        return selfIntersections(v, t, mask);
+      },
+      py::arg("vertices"), py::arg("triangles"), py::arg("face_mask") = py::none(),
+      "Number of intersecting triangle pairs (neighbours sharing a vertex or edge do not count) among the "
+      "triangles where face_mask (#F bools, default all) is set.");
   m.def(
       "local_bulge",
       [](const DoubleArray& rest, const IntArray& triangles, const DoubleArray& deformed, const IntArray& joints,

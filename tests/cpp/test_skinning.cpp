@@ -253,6 +253,33 @@ TEST(SkinQuality, RegionVolumesAddUpAndFollowRigidMotion) {
             std::string::npos);
 }
 
+TEST(SkinQuality, SelfIntersectionsCountCrossingPairsNotNeighbours) {
+  // The synthetic arm's closed skin: no pair crosses; neighbours share vertices and edges without counting.
+  const Character c = makeSyntheticArm().character;
+  EXPECT_EQ(selfIntersections(c.mesh.vertices, c.mesh.triangles), 0);
+  // Independent answer: a square of two triangles, and a third triangle that pierces one of them (1 pair), then
+  // both (2 pairs); a fourth far away adds none.
+  Points v(10, 3);
+  v << 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0,   // square in z = 0, triangles (0 1 2) and (0 2 3)
+      0.6, 0.2, -1, 0.6, 0.2, 1, 0.9, 0.1, 0,  // vertical triangle through (0 1 2) only
+      5, 5, 5, 6, 5, 5, 5, 6, 5;
+  Triangles t(4, 3);
+  t << 0, 1, 2, 0, 2, 3, 4, 5, 6, 7, 8, 9;
+  EXPECT_EQ(selfIntersections(v, t), 1);
+  v.row(6) << 0.2, 0.8, 0;  // now it also reaches across the diagonal into (0 2 3)
+  EXPECT_EQ(selfIntersections(v, t), 2);
+  EXPECT_EQ(selfIntersections(v, t, {1, 1, 0, 1}), 0);  // masked out: tested only among the masked
+  // A fold: the arm's skin with one end pushed through the rest counts crossings.
+  Points folded = c.mesh.vertices;
+  for (int i = 0; i < folded.rows(); ++i)
+    if (folded(i, 0) > 0.5) folded(i, 0) = 1.0 - folded(i, 0);  // mirror the far part back over x = 0.5
+  EXPECT_GT(selfIntersections(folded, c.mesh.triangles), 0);
+  EXPECT_NE(test::inputErrorOf([&] { selfIntersections(v, t, {1, 0}); }).find("2 entries"), std::string::npos);
+  Points bad = v;
+  bad(3, 1) = std::nan("");
+  EXPECT_NE(test::inputErrorOf([&] { selfIntersections(bad, t); }).find("finite"), std::string::npos);
+}
+
 // ============================================================================
 // PC2
 // ============================================================================

@@ -188,3 +188,16 @@ def test_several_meshes_load_as_one_character_or_one_by_name(core):
     muscles, report = core.extract_muscles(whole, build_surfaces=False)
     assert report["excluded"] and {e["reason"] for e in report["excluded"]} <= {"small", "rigid"}
     assert all(e["bone"] == "Head" for e in report["excluded"])
+
+
+def test_make_synthetic_body_kinds_names_and_errors(core):
+    """The varied characters of issue 13 from Python: truth per kind, names per scheme, split meshes, bad options."""
+    character, truth = core.make_synthetic_body(seed=1, kind="quadruped", naming="german", split=True)
+    assert len(truth) == 16 and len(character.pieces) == 3
+    assert "Oberschenkel.L" in character.bone_names and truth[0]["bone"] in character.bone_names
+    assert np.asarray(truth[0]["center_line"]).shape[1] == 3
+    _, smooth = core.make_synthetic_body(seed=1, muscle_scale=0.0)
+    assert smooth == []
+    for bad in (dict(kind="snake"), dict(naming="klingon"), dict(scale=0.0), dict(muscle_scale=-1.0)):
+        with pytest.raises(ValueError):
+            core.make_synthetic_body(**bad)

@@ -130,6 +130,19 @@ def test_elbow_bend_volume_and_bulge_measures(core, arm):
     assert len(change) == arm.num_bones and np.isfinite(change).all()
 
 
+def test_self_intersections_of_a_folded_elbow(core, arm):
+    """The rest skin crosses nowhere; bent far past its range, LBS folds the elbow's skin through itself."""
+    assert core.self_intersections(arm.vertices, arm.triangles) == 0
+    pose = bend(core, arm, 170)
+    posed = core.skin(arm.vertices, arm.weight_joints, arm.weight_values, core.skeleton_transforms(arm, pose))
+    crossings = core.self_intersections(posed, arm.triangles)
+    none = core.self_intersections(posed, arm.triangles, np.zeros(arm.num_triangles, bool))
+    print(f"LBS 170 deg: {crossings} crossing triangle pairs")
+    assert crossings > 0 and none == 0
+    with pytest.raises(ValueError, match="entries"):
+        core.self_intersections(posed, arm.triangles, np.ones(3, bool))
+
+
 def test_pc2_round_trip(core, arm, tmp_path):
     frames = np.stack([np.asarray(arm.vertices, dtype=np.float32) + i for i in range(3)])
     path = str(tmp_path / "x.pc2")

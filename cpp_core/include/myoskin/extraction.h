@@ -61,7 +61,8 @@ struct EndOptions {
   // shoulder swing 60 degrees): skin volume -1.1 to -1.8 % instead of -1.5 to -9.8 % (plain LBS -0.1 %);
   // 0 = straight lines (the paper's default).
   double jointWrapFraction = 0.3;
-  // A limb muscle whose ends lie on one segment split by twist bones (twistSplits) acts on no joint (the end search
+  // A limb or shoulder-girdle muscle (not a trunk muscle) whose ends lie on one segment split by twist bones
+  // (twistSplits) acts on no joint (the end search
   // looks one bone further, which is the twist split): its end nearer a real joint is carried over it onto the next
   // bone, this fraction of that bone's length (or, at the proximal end, of the segment's first bone) past the joint,
   // as the biceps inserts on the forearm. 0 = off.

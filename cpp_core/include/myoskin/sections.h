@@ -35,6 +35,7 @@ std::vector<BoneRole> classifyBones(const Skeleton& skeleton, const std::map<std
 // 45 % of the vertices weighted mostly to the pair have both shares between 0.1 and 0.9; a real joint blends in a
 // narrow band: measured on MakeHuman 0.27-0.29 at elbow and knee, 0.53-0.68 at its twist splits). #B.
 std::vector<char> twistSplits(const Character& character);
+std::vector<char> twistSplits(const Skeleton& skeleton, const SkinWeights& weights);
 
 
 // The skeleton as extraction sees it: bone tails from the joints (each bone ends at its continuing child's head;

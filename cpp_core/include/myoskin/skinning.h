@@ -45,14 +45,13 @@ struct HybridWeightOptions {
   // Fraction of the straight rest line origin -> insertion, from each end, over which the muscle's weight
   // fades to 0, so the skin over the tendons and attachments follows the bones (0 = no fade).
   double endTaper = 0.5;
-  // In the skeleton's joint crease the muscles give way to its blend: each muscle's weight (before smoothing)
-  // is multiplied by 1 - creaseRelief * beta, beta = 2 (1 - the vertex's largest bone share) clamped to [0, 1]
-  // (0 on skin one bone moves rigidly, 1 at an even two-bone blend), so a muscle bowstringing across a flexed
-  // joint does not lift the crease (0 = off, the default). Measured (synthetic arm, seed 2, whose brachialis
-  // crosses the elbow): elbow region at 35 / 70 degrees +7.1 / +12.2 % with 0, +5.1 / +7.3 % with 0.5,
-  // +3.3 / +4.0 % with 1 (plain LBS -4.4 / -13.9 %). Off by default because any two-bone blend counts as a
-  // crease: on MakeHuman the twist splits (upperarm01/02) and the spine are blended too (beta > 0.5 on 94 % of
-  // upperarm01's skin), so 0.5 takes ~25 % of the biceps' weight where nothing bends (bulge 2.71 -> 2.30 mm).
+  // Further relief in the skeleton's joint creases: each muscle's weight (after smoothing) is multiplied by
+  // 1 - creaseRelief * beta, beta = 2 (1 - the vertex's largest segment share) clamped to [0, 1] (segments join
+  // bones across twist splits; 0 on skin one segment moves rigidly, 1 at an even blend across a real joint)
+  // (0 = off, the default). Without it a muscle already leaves the crease to the skeleton: it takes weight only
+  // from its belly's segment, and none at the plane of a real joint it crosses (fading over falloffDistance
+  // radii). Measured (synthetic arm seed 2, elbow 70 degrees; plain LBS -13.9 %): elbow region -4.6 % with 0,
+  // -5.4 % with 0.5 (before the segment rule and joint fade: +12.2 %, the brachialis lifting the crease).
   double creaseRelief = 0.0;
   // Smallest muscle weight kept, in [0, 0.25] (0 = keep every weight): a muscle's share of a vertex below
   // minWeight goes back to the bones it came from, and the smaller part of its split between two joints
@@ -66,8 +65,10 @@ struct HybridWeightOptions {
 // (#V by K over the #B bones) and the rig's muscles: each muscle's weight at a vertex comes from the
 // vertex's distance to the muscle's rest surface (MuscleRig::restSurface)
 // and the muscle's side (the skin normal must face away from the muscle), times the dominance; it is
-// smoothed over the skin, split linearly between the two muscle joints nearest along the muscle, and the
-// skeleton weights (normalised) fill the remainder. Every row sums to 1 where the skeleton row was
+// smoothed over the skin, faded at the muscle's ends (endTaper) and at the plane of each real joint it crosses,
+// taken only from the bones of its belly's segment (a bone with its twist-split neighbours, twistSplits), split
+// linearly between the two muscle joints nearest along the muscle, and the skeleton weights (normalised) fill
+// the remainder. Every row sums to 1 where the skeleton row was
 // non-empty (sum > 1e-4); empty rows stay empty. Throws InputError on mismatched sizes or bad options.
 SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWeights, const MuscleRig& rig,
                                  const HybridWeightOptions& options = {});
@@ -183,6 +184,11 @@ std::vector<double> regionVolumeChange(const Points& rest, const Points& deforme
 // muscles bulging give > 0. rest/deformed: #V by 3; returns #V. Throws InputError on mismatched sizes.
 Eigen::VectorXd localBulge(const Points& rest, const Triangles& triangles, const Points& deformed,
                            const SkinWeights& skeletonWeights, const std::vector<Mat4>& skeletonTransforms);
+
+// Number of pairs of triangles that intersect each other (neighbours sharing a vertex or an edge do not count),
+// among the triangles with faceMask[f] != 0 (#F; empty = all). Throws InputError on non-finite vertices, bad
+// indices or a mask of the wrong size.
+int selfIntersections(const Points& vertices, const Triangles& triangles, const std::vector<char>& faceMask = {});
 
 // ============================================================================
 // Point caches (PC2, Blender's Mesh Cache modifier)

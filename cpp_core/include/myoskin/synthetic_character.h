@@ -45,6 +45,51 @@ struct SyntheticCharacter {
 // Throws InputError for ringsPerMetre < 20, segmentsAround < 8 or a negative/non-finite muscleScale.
 SyntheticCharacter makeSyntheticArm(const SyntheticArmOptions& options = {});
 
+// ============================================================================
+// Varied whole bodies (issue 13, "Any character": a test set that cannot be tuned to)
+// ============================================================================
+
+enum class BodyKind { Biped, Quadruped };
+// How the bones are called: Rigify-like rig names (upper_arm.L, thigh.R, hips, spine, neck, head), Blender's defaults
+// in creation order (Bone, Bone.001, ...), German (Oberarm.L, Oberschenkel.R, Wirbelsäule), Japanese (上腕.L, 太もも.R),
+// or none ("joint_0", "joint_1", ...). Only names change: skin, weights and bone order are the same under every scheme.
+enum class BoneNaming { Rig, BlenderDefault, German, Japanese, Unnamed };
+
+struct SyntheticBodyOptions {
+  unsigned seed = 1;                 // proportions (limb lengths and radii, trunk, pose) and muscle jitter; 0 = canonical
+  BodyKind kind = BodyKind::Biped;
+  double muscleScale = 1.0;          // 0 gives a smooth body with no muscles
+  double scale = 1.0;                // overall size factor applied last (1 = metres; 0.01, 100: other units)
+  BoneNaming naming = BoneNaming::Rig;
+  bool split = false;                // several meshes (trunk + head, arms or front legs, legs), as a glTF loader reads
+                                     // them: pieces that meet at open boundaries, welded by position (Character::pieces)
+  double cellSize = 0.0;             // skin resolution: grid spacing of the surface extraction in metres (before
+                                     // `scale`); 0 = 9 mm (a limb radius is 6 of them)
+};
+
+// A whole character: the skin is the zero set of a smooth union (polynomial smooth minimum, 3 cm) of star-shaped
+// generalized cylinders around straight axes with rounded ends -- the trunk, neck and head, tail, and the limbs, whose
+// skin is the synthetic arm's (muscle-free limb merged with elliptical muscle bellies, limb_model.h) -- meshed by
+// marching tetrahedra on a regular grid: one closed, manifold, outward-oriented skin (also when split).
+//   Biped (about 1.75 m, Z up, facing -Y, left side at +X, A-pose): hips (root) -> spine -> chest -> neck -> head;
+//     chest -> shoulder -> upper_arm -> forearm -> hand on each side; hips -> thigh -> shin -> foot on each side.
+//     Muscles per arm: biceps, triceps, brachialis, forearm flexors and extensors; per leg: quadriceps,
+//     hamstrings, gastrocnemius, tibialis anterior.
+//   Quadruped (trunk along Y, head at -Y): hips (root) -> spine -> chest -> neck -> head; hips -> tail -> tail.001 ->
+//     tail.002; chest -> shoulder (scapula) -> front_thigh -> front_shin -> front_foot; hips -> thigh -> shin -> foot.
+//     Muscles per front leg: triceps, biceps, forearm extensors and flexors; per hind leg: quadriceps, hamstrings,
+//     gastrocnemius, tibialis anterior.
+// Left and right are mirror images. Proportions vary with the seed: limb lengths +-12 %, limb thickness +-15 %, trunk
+// size +-10 %, the arms' A-pose angle 30-50 degrees, overall size +-10 %. Weights: inverse eighth power of the distance
+// to each bone segment, four heaviest, normalised (smooth, blended over about a limb radius at each joint).
+// Ground truth as the arm's (TrueMuscle, names like "biceps.L", bone = the bone's name under the naming scheme),
+// in the character's space and units. Throws InputError for a negative or non-finite muscleScale, a scale or
+// cellSize that is not finite and positive (cellSize 0 = default), or a cellSize above 2 cm.
+SyntheticCharacter makeSyntheticBody(const SyntheticBodyOptions& options = {});
+
+const char* bodyKindName(BodyKind kind);        // "biped", "quadruped"
+const char* boneNamingName(BoneNaming naming);  // "rig", "blender", "german", "japanese", "unnamed"
+
 // Ground truth as JSON (format "myoskin.true_muscles", version 1), positions in metres:
 // {"format","version","muscles":[{"name","bone","center_line":[[x,y,z],...],"radius":[...],"peak_radius"}]}
 std::string trueMusclesToJson(const std::vector<TrueMuscle>& muscles);

@@ -467,7 +467,7 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
   const std::vector<char> twist = twistSplits(character);
   tbb::parallel_for(size_t(0), kept.size(), [&](size_t i) {
     muscles[i] = buildMuscleEnds(kept[i], sections, sk, options.ends);
-    if (kept[i].family == "limb") spanRealJoint(muscles[i], sk, twist, options.ends);  // act on a real joint
+    if (!detail::trunkFamily(kept[i].family)) spanRealJoint(muscles[i], sk, twist, options.ends);  // act on a real joint
     muscles[i].confidence = kept[i].confidence;
   });
   std::vector<std::string> regions(kept.size());

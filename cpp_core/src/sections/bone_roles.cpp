@@ -328,12 +328,12 @@ std::vector<BoneRole> classifyBones(const Skeleton& skeleton, const std::map<std
   return roles;
 }
 
-std::vector<char> twistSplits(const Character& character) {
-  const Skeleton& sk = character.skeleton;
+std::vector<char> twistSplits(const Character& character) { return twistSplits(character.skeleton, character.weights); }
+
+std::vector<char> twistSplits(const Skeleton& sk, const SkinWeights& w) {
   const int nb = sk.numBones();
   std::vector<char> twist(nb, 0);
-  if (!character.hasWeights()) return twist;
-  const SkinWeights& w = character.weights;
+  if (w.numVertices() == 0) return twist;
   std::vector<int> pairSkin(nb, 0), blended(nb, 0);  // per child: skin mostly on it + its parent, and how much blends
   for (int v = 0; v < w.numVertices(); ++v) {
     double total = 0.0;

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "myoskin/errors.h"
+#include "myoskin/sections.h"
 #include "myoskin/skinning.h"
 
 namespace myoskin {
@@ -119,6 +120,60 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
       if (sum > kRestWeightThreshold) relief[v] = 1.0 - options.creaseRelief * std::clamp(2.0 * (1.0 - largest / sum), 0.0, 1.0);
     }
 
+  // A muscle takes its weight only from the skeleton weights of the bones it spans (the chain from its
+  // origin bone to its insertion bone): skin that the skeleton blends with other bones (near a joint the
+  // muscle does not cross) keeps that blend.
+  const Skeleton& skeleton = rig.skeleton();
+  std::vector<std::vector<char>> spans(rig.numMuscles(), std::vector<char>(nb, 0));
+  for (int m = 0; m < rig.numMuscles(); ++m) {
+    const int o = skeleton.find(rig.muscles()[m].origin.bone), i = skeleton.find(rig.muscles()[m].insertion.bone);
+    std::vector<char> aboveO(nb, 0);
+    for (int b = o; b >= 0; b = skeleton.bones[b].parent) aboveO[b] = 1;
+    int common = i;
+    while (common >= 0 && !aboveO[common]) spans[m][common] = 1, common = skeleton.bones[common].parent;
+    for (int b = o; b >= 0 && b != common; b = skeleton.bones[b].parent) spans[m][b] = 1;
+    if (common >= 0) spans[m][common] = 1;
+  }
+  // Across a real joint the skin stays with the skeleton's blend: a muscle takes weight only from the bones of
+  // the segment its belly lies on (a bone with its twist-split neighbours, twistSplits), so the share the skin
+  // has on the far side of a joint the muscle crosses keeps following that bone.
+  // crossed[m]: (joint position, the child bone's direction) of each real joint muscle m crosses.
+  std::vector<std::vector<std::pair<Vec3, Vec3>>> crossed(rig.numMuscles());
+  {
+    const std::vector<char> twist = twistSplits(skeleton, skeletonWeights);
+    std::vector<int> segment(nb);
+    for (int b = 0; b < nb; ++b) {
+      int r = b;
+      while (twist[r] && skeleton.bones[r].parent >= 0) r = skeleton.bones[r].parent;
+      segment[b] = r;
+    }
+    for (int m = 0; m < rig.numMuscles(); ++m) {
+      const Muscle& muscle = rig.muscles()[m];
+      const Vec3 belly = muscle.sections[muscle.sections.size() / 2].center;
+      int nearest = -1;
+      double best = std::numeric_limits<double>::infinity();
+      for (int b = 0; b < nb; ++b) {
+        if (!spans[m][b]) continue;
+        const Bone& bone = skeleton.bones[b];
+        const Vec3 d = bone.tail - bone.head;
+        const double t = d.squaredNorm() > 0 ? std::clamp((belly - bone.head).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
+        const double dist = (bone.head + t * d - belly).norm();
+        if (dist < best) best = dist, nearest = b;
+      }
+      if (nearest < 0) continue;
+      for (int b = 0; b < nb; ++b) {
+        if (!spans[m][b]) continue;
+        // A real joint the muscle crosses: b's head when b starts a segment and its parent is spanned too.
+        const int parent = skeleton.bones[b].parent;
+        if (segment[b] == b && parent >= 0 && spans[m][parent]) {
+          const Vec3 axis = skeleton.bones[b].tail - skeleton.bones[b].head;
+          if (axis.norm() > 0) crossed[m].push_back({skeleton.bones[b].head, axis.normalized()});
+        }
+      }
+      for (int b = 0; b < nb; ++b)
+        if (spans[m][b] && segment[b] != segment[nearest]) spans[m][b] = 0;
+    }
+  }
   // ==========================================================================
   // Per muscle: distance + side on the vertices near it, then smoothing over the skin
   // ==========================================================================
@@ -167,14 +222,7 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
         const Vec3 away = p - surface.vertices.row(q).transpose();
         const double cosine = d > 1e-9 ? away.dot(normals.row(near[i]).transpose()) / d : 1.0;
         const double side = std::clamp(2.0 * cosine, 0.0, 1.0);
-        // Fade towards the attachments along the rest action path.
-        double taper = 1.0;
-        if (options.endTaper > 0.0 && pathLength2 > 0.0) {
-          const double u = std::clamp((p - origin).dot(path) / pathLength2, 0.0, 1.0);
-          const double e = std::min(u, 1.0 - u) / options.endTaper;
-          taper = e >= 1.0 ? 1.0 : e * e * (3.0 - 2.0 * e);
-        }
-        value[i] = dominance * f * side * taper * relief[near[i]];
+        value[i] = dominance * f * side * relief[near[i]];
       }
     });
     std::vector<double> smoothed(value.size());
@@ -190,7 +238,20 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
       });
       value.swap(smoothed);
     }
+    // Fade towards the attachments along the rest action path, and to 0 at the plane of each real joint the
+    // muscle crosses (over the muscle's reach, falloffDistance radii), after the smoothing so that the skin over the tendons and in the
+    // joints' creases keeps following the bones.
     for (size_t i = 0; i < near.size(); ++i) {
+      const Vec3 p = skin.vertices.row(near[i]).transpose();
+      for (const auto& [joint, axis] : crossed[m]) {
+        const double e = std::min(std::abs((p - joint).dot(axis)) / d1, 1.0);
+        value[i] *= e * e * (3.0 - 2.0 * e);
+      }
+      if (options.endTaper > 0.0 && pathLength2 > 0.0) {
+        const double u = std::clamp((p - origin).dot(path) / pathLength2, 0.0, 1.0);
+        const double e = std::min(u, 1.0 - u) / options.endTaper;
+        value[i] *= e >= 1.0 ? 1.0 : e * e * (3.0 - 2.0 * e);
+      }
       if (value[i] > 1e-6) entries[near[i]].push_back({m, std::min(value[i], 1.0)});
       local[near[i]] = -1;
     }
@@ -199,20 +260,6 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
   // ==========================================================================
   // Per vertex: muscle share split between joints, skeleton fills the rest, strongest maxInfluences kept
   // ==========================================================================
-  // A muscle takes its weight only from the skeleton weights of the bones it spans (the chain from its
-  // origin bone to its insertion bone): skin that the skeleton blends with other bones (near a joint the
-  // muscle does not cross) keeps that blend.
-  const Skeleton& skeleton = rig.skeleton();
-  std::vector<std::vector<char>> spans(rig.numMuscles(), std::vector<char>(nb, 0));
-  for (int m = 0; m < rig.numMuscles(); ++m) {
-    const int o = skeleton.find(rig.muscles()[m].origin.bone), i = skeleton.find(rig.muscles()[m].insertion.bone);
-    std::vector<char> aboveO(nb, 0);
-    for (int b = o; b >= 0; b = skeleton.bones[b].parent) aboveO[b] = 1;
-    int common = i;
-    while (common >= 0 && !aboveO[common]) spans[m][common] = 1, common = skeleton.bones[common].parent;
-    for (int b = o; b >= 0 && b != common; b = skeleton.bones[b].parent) spans[m][b] = 1;
-    if (common >= 0) spans[m][common] = 1;
-  }
   std::vector<std::vector<Vec3>> jointLine(rig.numMuscles());
   for (int m = 0; m < rig.numMuscles(); ++m)
     for (int k = 0; k < rig.jointCount(m); ++k)
