@@ -1,10 +1,27 @@
 // The `_core` module: numpy in, numpy out. InputError -> ValueError, other core errors -> RuntimeError.
 #include <Python.h>
 
+#include <cstring>
+
 #include "bindings.h"
 #include "myoskin/errors.h"
 
 namespace py = pybind11;
+
+namespace {
+// PyErr_SetString needs UTF-8; a message quoting bytes of a damaged file (tinygltf quotes its JSON) may not
+// be, and then Python raised the exception with no message at all. Undecodable bytes become U+FFFD.
+void setError(PyObject* type, const char* what) {
+  PyObject* message = PyUnicode_DecodeUTF8(what, static_cast<Py_ssize_t>(std::strlen(what)), "replace");
+  if (message == nullptr) {
+    PyErr_Clear();
+    PyErr_SetString(type, "(the error message could not be decoded)");
+    return;
+  }
+  PyErr_SetObject(type, message);
+  Py_DECREF(message);
+}
+}  // namespace
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "Myoskin core: muscle extraction, muscle deformation and hybrid skinning (Yang & Zhang 2006).";
@@ -12,9 +29,9 @@ PYBIND11_MODULE(_core, m) {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const myoskin::InputError& e) {
-      PyErr_SetString(PyExc_ValueError, e.what());
+      setError(PyExc_ValueError, e.what());
     } catch (const myoskin::MyoskinError& e) {
-      PyErr_SetString(PyExc_RuntimeError, e.what());
+      setError(PyExc_RuntimeError, e.what());
     }
   });
   m.def(

@@ -106,13 +106,21 @@ def open_input(path):
     if not os.path.isfile(path):
         fail(f"no such file: {path}")
     ext = os.path.splitext(path)[1].lower()
-    if ext == ".blend":
-        bpy.ops.wm.open_mainfile(filepath=path)
-    elif ext in (".glb", ".gltf"):
-        bpy.ops.wm.read_homefile(use_empty=True)
-        addon("gltf_io").import_gltf(path)
-    else:
+    if ext not in (".blend", ".glb", ".gltf"):
         fail(f"unsupported input {path}: give a .blend, .glb or .gltf")
+    try:  # a damaged file: Blender's reader or glTF importer raises RuntimeError("Error: <why>")
+        if ext == ".blend":
+            bpy.ops.wm.open_mainfile(filepath=path)
+        else:
+            addon("gltf_io").check_gltf_file(path)  # an unreadable container: our message, not a traceback
+            bpy.ops.wm.read_homefile(use_empty=True)
+            addon("gltf_io").import_gltf(path)
+    except Exception as e:  # noqa: BLE001  (the importer's own failures are not all RuntimeError)
+        lines = [ln.strip() for ln in str(e).splitlines() if ln.strip() and not ln.startswith((" ", "Traceback"))]
+        lines = [ln for ln in lines if not ln.startswith(("Error: Python:", "Location:"))]
+        why = lines[0] if lines else type(e).__name__
+        why = why[len("Error: "):] if why.startswith("Error: ") else why
+        fail(f"cannot read {path} (damaged or not a {ext[1:]} file?): {why}")
     log(f"opened {path}")
 
 

@@ -19,6 +19,7 @@ from .state import rig_skins, rig_state, set_rig_skins
 
 
 BACKUP_KEY = "myoskin_original_weights"
+ADDED_KEY = "myoskin_added_groups"  # ID property on a bound mesh: the skeleton bones' groups Bind created
 
 
 def backup_weights(skin):
@@ -34,6 +35,42 @@ def backup_weights(skin):
                         for g, (ids, ws) in zip(skin.vertex_groups, members)}
 
 
+def note_added_groups(skin, bone_names):
+    """Remember which of the skeleton's bones had no vertex group on the skin before Bind (Bind writes one
+    per bone; Unbind removes those again, so the mesh gets back exactly the groups it had)."""
+    skin[ADDED_KEY] = [n for n in bone_names if n not in skin.vertex_groups]
+
+
+def check_backup(skin):
+    """ValueError when the skin's weight backup (an ID property a user can edit) is not what backup_weights
+    wrote: {group name: {"index": int, "vertices": [int in range], "weights": [number], same lengths}}."""
+    backup = skin.get(BACKUP_KEY)
+    if backup is None:
+        return
+    count = len(skin.data.vertices)
+    problem = ""
+    if not hasattr(backup, "items"):
+        problem = "not a mapping"
+    else:
+        for name, entry in backup.items():
+            try:
+                index = int(entry["index"])
+                ids = np.asarray(entry["vertices"], dtype=np.float64).ravel()
+                ws = np.asarray(entry["weights"], dtype=np.float64).ravel()
+            except (KeyError, TypeError, ValueError, IndexError):
+                problem = f"group '{name}' is not {{index, vertices, weights}}"
+                break
+            if index < 0 or len(ids) != len(ws) or (len(ids) and (ids.min() < 0 or ids.max() >= count
+                                                                    or np.any(ids != np.round(ids)))) \
+                    or not np.all(np.isfinite(ws)):
+                problem = (f"group '{name}' names vertices outside the mesh, or weights that are not numbers or "
+                           f"not one per vertex")
+                break
+    if problem:
+        raise ValueError(f"The weight backup of '{skin.name}' (its '{BACKUP_KEY}' property) is damaged: {problem} "
+                         f"(edited by hand?); nothing was changed")
+
+
 def restore_weights(skin):
     """Give every backed-up group exactly its backed-up members (groups keep their index; a group renamed
     since, e.g. with its bone, is found by index; missing ones are recreated; groups added since the backup
@@ -43,6 +80,14 @@ def restore_weights(skin):
         return False
     everyone = list(range(len(skin.data.vertices)))
     names = set(backup.keys())
+    added = skin.get(ADDED_KEY)
+    if added is not None:  # the groups Bind created for bones that had none (a damaged list: none removed)
+        added = [n for n in added if isinstance(n, str)] if not isinstance(added, str) else []
+        for n in added:
+            group = skin.vertex_groups.get(n)
+            if group is not None and n not in names:
+                skin.vertex_groups.remove(group)
+        del skin[ADDED_KEY]
     for name, entry in sorted(backup.items(), key=lambda kv: kv[1]["index"]):
         group = skin.vertex_groups.get(name)
         if group is None:  # renamed with its bone since the bind (a group keeps its index): restore into it
@@ -104,6 +149,7 @@ def bind(context, skins, arm):
     names = list(character.bone_names)
     for skin in skins:
         backup_weights(skin)
+        note_added_groups(skin, names)
     try:
         rig_io.create_rig_bones(arm, rig, names)
         for skin, mesh_joints, mesh_weights in zip(skins, combined.split(joints), combined.split(weights)):
@@ -189,9 +235,9 @@ def skinner_for(skin, arm, live_rig, rest, joints, weights):
 def bound_skins(arm):
     """The meshes a bind changed: those named in the bind record, the character's recorded meshes, and any
     mesh of the armature holding a weight backup (e.g. renamed since), in that order, each once."""
-    state = rig_state(arm)
-    record = json.loads(state.bind_text.as_string()) if state.bind_text else {}
+    record, _problem = read_bind_record_or_empty(arm)
     names = record.get("skins") or ([record["skin"]] if record.get("skin") else [])
+    names = [n for n in names if isinstance(n, str)] if isinstance(names, list) else []
     found = [bpy.data.objects[n] for n in names if n in bpy.data.objects]
     found += rig_skins(arm) + [o for o in blender_io.find_skin_meshes(arm) if BACKUP_KEY in o]
     unique = []
@@ -203,17 +249,22 @@ def bound_skins(arm):
 
 def unbind(arm):
     """Remove the muscle-joint bones and their groups, restore the original weights of every bound mesh
-    exactly, remove the Armature modifiers Bind added."""
+    exactly, remove the Armature modifiers Bind added. Returns the reason the bind record could not be read
+    ("" when it could; without it the Armature modifiers Bind added stay)."""
     state = rig_state(arm)
-    record = json.loads(state.bind_text.as_string()) if state.bind_text else {}
+    record, problem = read_bind_record_or_empty(arm)
     skins = bound_skins(arm)
+    for skin in skins:  # a damaged weight backup stops here, before anything changed
+        check_backup(skin)
     rig_io.remove_muscle_bones(arm)
     for skin in skins:
         restore_weights(skin)
     added = record.get("added_modifiers")
     if added is None:  # a bind record from before several meshes
         added = [record["skin"]] if record.get("added_modifier") and record.get("skin") else []
+    added = added if isinstance(added, list) else []
     before = record.get("preserve_volume_before", {})
+    before = before if isinstance(before, dict) else {}
     for skin in skins:
         mod = armature_modifier(skin, arm)
         if mod is None:
@@ -226,9 +277,66 @@ def unbind(arm):
         bpy.data.texts.remove(state.bind_text)
     state.bound, state.dirty = False, False
     runtime.forget(arm.name)
+    return problem
 
 
 RECORD_KEY = "myoskin_key"  # ID property on the bind record Text: a digest of its content
+# The bind record is data a user can edit by hand (it is a Text block): it is only ever parsed as JSON, never
+# executed, and refused beyond this size (a 1000-bone rig with 200 muscles writes about 3 MB).
+MAX_RECORD_CHARS = 64 * 1024 * 1024
+_RECORD_LISTS = ("bone_names", "bone_parents", "bone_heads", "bone_tails", "bone_rest", "joint_names")
+
+
+def parse_json_text(content, what, limit=None):
+    """A JSON object from text a user may have edited (a Text block, an ID property): parsed as data only,
+    at most `limit` characters (default MAX_RECORD_CHARS); ValueError with a message naming `what` otherwise."""
+    limit = MAX_RECORD_CHARS if limit is None else limit
+    if not isinstance(content, str):
+        raise ValueError(f"{what} is not text (edited by hand?)")
+    if len(content) > limit:
+        raise ValueError(f"{what} holds {len(content):,} characters, more than the {limit:,} allowed (edited by hand?)")
+    try:
+        data = json.loads(content)
+    except RecursionError:
+        raise ValueError(f"{what} is nested too deeply to be read (edited by hand?)") from None
+    except ValueError as e:
+        where = f" at line {e.lineno}, column {e.colno}" if hasattr(e, "lineno") else ""
+        raise ValueError(f"{what} is not valid JSON{where} (edited by hand?)") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{what} is not a JSON object (edited by hand?)")
+    return data
+
+
+def read_bind_record(arm_obj):
+    """The armature's bind record (a dict), checked: the lists live update needs, of matching lengths.
+    ValueError saying what is wrong and what to do (Unbind works without it; bind again)."""
+    text = arm_obj.myoskin.bind_text
+    if text is None:
+        raise ValueError(f"'{arm_obj.name}' has no bind record: bind again")
+    what = f"The bind record '{text.name}' of '{arm_obj.name}'"
+    record = parse_json_text(text.as_string(), what)
+    bad = [k for k in _RECORD_LISTS if not isinstance(record.get(k), list)]
+    if not bad and not isinstance(record.get("muscles"), str):
+        bad = ["muscles"]
+    if not bad:
+        n = len(record["bone_names"])
+        bad = [k for k in _RECORD_LISTS[1:5] if len(record[k]) != n]
+    if not bad and not all(isinstance(x, str) for x in record["bone_names"] + record["joint_names"]):
+        bad = ["bone_names"]
+    if bad:
+        raise ValueError(f"{what} is damaged ('{bad[0]}' missing or wrong; edited by hand?): Unbind, then Bind again")
+    return record
+
+
+def read_bind_record_or_empty(arm_obj):
+    """(record, problem): the bind record, or {} and the reason it cannot be read (Unbind goes on without it:
+    the meshes and the weight backup are found from the armature)."""
+    if arm_obj.myoskin.bind_text is None:
+        return {}, ""
+    try:
+        return read_bind_record(arm_obj), ""
+    except ValueError as e:
+        return {}, str(e)
 
 
 def write_bind_record(arm_obj, record):

@@ -21,6 +21,7 @@ extraction (section spacing) are scene units. Muscles come back to the armature'
 
 Only this module (and the operators/panels) touch bpy; the algorithms live in the core.
 """
+import math
 from contextlib import contextmanager
 
 import bpy
@@ -123,6 +124,31 @@ def resolve_character(obj):
     return [mesh_obj], arm, []
 
 
+def _linked(id_block):
+    """The library an ID comes from (read-only here), else None."""
+    return getattr(id_block, "library", None) if id_block is not None else None
+
+
+def require_editable(obj):
+    """ValueError when the character of `obj` (the object, its armature and the meshes that armature deforms,
+    and their data) is linked from a library: read-only, so nothing of it can change here."""
+    if obj is None:
+        return
+    arm = find_armature(obj)
+    if arm is None and obj.parent is not None and obj.parent.type == 'ARMATURE':
+        arm = obj.parent
+    objects = [obj] + ([arm] + find_skin_meshes(arm) if arm is not None else [])
+    for o in objects:
+        for block in (o, o.data):
+            library = _linked(block)
+            if library is not None:
+                kind = "Object" if block == o else f"The data of '{o.name}',"
+                name = f" '{o.name}'" if block == o else ""
+                raise ValueError(f"{kind}{name} is linked from the library '{library.filepath}' (read-only): make "
+                                 f"the character local (Object > Relations > Make Local) or add a Library "
+                                 f"Override to change it")
+
+
 def armature_scale(armature_obj):
     """The armature object's uniform world scale (the cube root of its matrix's determinant, so a
     non-uniform scale gives its geometric mean)."""
@@ -154,8 +180,13 @@ def _transform_points(m, points):
 
 
 def mesh_to_armature_matrix(mesh_obj, armature_obj):
-    """4x4 numpy matrix taking the mesh object's local coordinates to armature space (mesh space)."""
-    return _matrix_to_numpy(armature_obj.matrix_world.inverted() @ mesh_obj.matrix_world)
+    """4x4 numpy matrix taking the mesh object's local coordinates to armature space (mesh space);
+    ValueError when the armature object's matrix cannot be inverted (a zero scale)."""
+    world = armature_obj.matrix_world
+    if not abs(world.to_3x3().determinant()) > 1e-30 or not all(math.isfinite(x) for row in world for x in row):
+        raise ValueError(f"Armature '{armature_obj.name}' has a zero scale (or a transform that is not finite): "
+                         f"give its object a non-zero scale")
+    return _matrix_to_numpy(world.inverted() @ mesh_obj.matrix_world)
 
 
 def mesh_vertices(mesh):
@@ -343,9 +374,10 @@ def _new_mesh(name, vertices, triangles):
 
 
 def write_vertex_weights(mesh_obj, bone_names, joints, weights):
-    """One vertex group per bone (group index = bone index) filled from #V by K joints/weights.
-    VertexGroup.add takes one weight for many vertices, so vertices are batched by equal weight."""
-    groups = [mesh_obj.vertex_groups.new(name=n) for n in bone_names]
+    """One vertex group per bone filled from #V by K joints/weights (a group of that name already there is
+    added to, in its place; on a mesh without groups, group index = bone index). VertexGroup.add takes one
+    weight for many vertices, so vertices are batched by equal weight."""
+    groups = [mesh_obj.vertex_groups.get(n) or mesh_obj.vertex_groups.new(name=n) for n in bone_names]
     joints = np.asarray(joints)
     weights = np.asarray(weights, dtype=np.float64)
     if joints.size == 0:

@@ -25,7 +25,6 @@ written (or as baked to the Action).
 
 Layer: runtime. Imports downward only (anim_compat, binding, core_loader, muscle_io, rig_io, runtime).
 """
-import json
 
 import bpy
 import numpy as np
@@ -39,9 +38,8 @@ stats = {"predicted": 0, "written": 0}  # frames written from the F-curve predic
 class LiveRig:
     """A MuscleRig built from an armature's bind record, plus index arrays into its pose bones."""
 
-    def __init__(self, arm_obj, record_text, key):
+    def __init__(self, arm_obj, record, key):
         core = core_loader.core()
-        record = json.loads(record_text)
         self.key = key
         self.bone_names = record["bone_names"]
         self.joint_names = record["joint_names"]
@@ -98,11 +96,10 @@ def apply_settings_to_bound(arm_obj):
     """After a muscle setting changed on a bound armature: when the bound joints stay the same (names and
     bind matrices, e.g. a new bulge factor), update the bind record so live update uses the new settings
     at once and return True; otherwise (the rest path or joints changed) return False: bind again."""
-    text = arm_obj.myoskin.bind_text
-    if text is None:
+    if arm_obj.myoskin.bind_text is None:
         return False
     core = core_loader.core()
-    record = json.loads(text.as_string())
+    record = binding.read_bind_record(arm_obj)
     try:
         muscles = [core.reattach_muscle(m) for m in muscle_io.state_to_core(arm_obj)]
         rig = core.MuscleRig(skeleton_character(record), muscles)
@@ -128,7 +125,7 @@ def live_rig(arm_obj):
     key = text.get(binding.RECORD_KEY) or text.as_string()
     cached = runtime.live_rigs.get(arm_obj.name)
     if cached is None or cached.key != key:
-        cached = LiveRig(arm_obj, text.as_string(), key)
+        cached = LiveRig(arm_obj, binding.read_bind_record(arm_obj), key)
         runtime.live_rigs[arm_obj.name] = cached
     return cached
 

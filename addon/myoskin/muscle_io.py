@@ -32,11 +32,21 @@ def muscle_to_data(muscle):
     return core_loader.core().muscles_to_json([muscle], indent=-1)
 
 
+MAX_DATA_CHARS = 16 * 1024 * 1024  # one muscle's stored muscles.json (a few kB when written by the add-on)
+
+
 def data_to_muscle(data, name="?"):
     """The core Muscle stored in a MyoskinMuscle.data string; ValueError naming the muscle when unusable."""
     if not data:
         raise ValueError(f"Muscle '{name}' has no stored data (was it added by hand?): extract it again")
-    muscles = core_loader.core().muscles_from_json(data)
+    if len(data) > MAX_DATA_CHARS:  # parsed as data only (the core's JSON reader), and bounded
+        raise ValueError(f"Muscle '{name}': its stored data holds {len(data):,} characters, more than the "
+                         f"{MAX_DATA_CHARS:,} allowed (edited by hand?): extract it again")
+    try:
+        muscles = core_loader.core().muscles_from_json(data)
+    except ValueError as e:
+        raise ValueError(f"Muscle '{name}': its stored data cannot be read ({e}; edited by hand?): extract it "
+                         f"again or remove it") from None
     if len(muscles) != 1:
         raise ValueError(f"Muscle '{name}': stored data holds {len(muscles)} muscles")
     return muscles[0]
@@ -115,8 +125,13 @@ def sync_text(arm_obj):
     for item in state.muscles:
         try:
             entry = json.loads(muscle_to_data(item_to_core(arm_obj, item)))["muscles"][0]
-        except ValueError:
-            entry = json.loads(item.data)["muscles"][0] if item.data else {"name": item.name}
+        except ValueError:  # kept as stored when it reads as a muscle, else just its name (damaged by hand?)
+            try:
+                entry = json.loads(item.data)["muscles"][0] if len(item.data) <= MAX_DATA_CHARS else None
+            except (ValueError, KeyError, TypeError, IndexError, RecursionError):
+                entry = None
+            if not isinstance(entry, dict):
+                entry = {"name": item.name}
         entry["enabled"] = bool(item.enabled)
         doc["muscles"].append(entry)
     text.from_string(json.dumps(doc, indent=1))

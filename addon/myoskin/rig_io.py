@@ -251,8 +251,9 @@ def write_combined_weights(mesh_obj, bone_names, joints, weights):
         raise ValueError(f"write_combined_weights: {joints.shape[0]} weight rows for "
                          f"{len(mesh_obj.data.vertices)} vertices of '{mesh_obj.name}'")
     wanted = set(bone_names)
+    everyone = list(range(len(mesh_obj.data.vertices)))
     for g in [g for g in mesh_obj.vertex_groups if g.name in wanted]:
-        mesh_obj.vertex_groups.remove(g)
+        g.remove(everyone)  # emptied, not removed: every group keeps its place (index) in the list
     return blender_io.write_vertex_weights(mesh_obj, bone_names, joints, weights)
 
 

@@ -38,6 +38,8 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
                                           (role_overrides; passed to the core as bone_roles=)
     skin_obj["myoskin_original_weights"]  ID property on every bound mesh: its vertex groups before Bind
                                           (Unbind restores them exactly)
+    skin_obj["myoskin_added_groups"]      the skeleton bones' vertex groups Bind created (bones the mesh had
+                                          no group of); Unbind removes them again
 
 Converting this to and from core Muscle lists is muscle_io's job; no core call here (only property
 definitions and their update callbacks, which hand the work to the layers above through runtime.dispatch;

@@ -1,6 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Muscle operators: extract, add from a marked region, remove, mirror, select, refresh, snap locators.
 Small: convert data (blender_io, muscle_io), call the core, report."""
+import traceback
+
 import bpy
 import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
@@ -127,14 +129,24 @@ def left_out_lines(combined, excluded):
 
 class _MuscleOperator:
     """Reports ValueError/RuntimeError from run() as UI errors; run() returns the INFO message, or
-    (level, message) for another level ('WARNING')."""
+    (level, message) for another level ('WARNING'). Any other exception is a bug: it is reported too (with
+    its type, and its traceback printed to the console), never raised into Blender. Operators that change the
+    character (`edits_character`) refuse a character linked from a library (read-only) first."""
     bl_options = {'REGISTER', 'UNDO'}
+    edits_character = True
 
     def execute(self, context):
         try:
+            if self.edits_character:
+                blender_io.require_editable(context.active_object)
             message = self.run(context)
         except (ValueError, RuntimeError, core_loader.CoreUnavailableError) as e:
             self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
+        except Exception as e:  # noqa: BLE001  (a bug: say so in the UI instead of a traceback)
+            traceback.print_exc()
+            self.report({'ERROR'}, f"{self.bl_label} failed unexpectedly ({type(e).__name__}: {e}); nothing more "
+                                   f"was done. Please report this with the console output")
             return {'CANCELLED'}
         level = 'INFO'
         if isinstance(message, tuple):
@@ -365,6 +377,7 @@ class MYOSKIN_OT_select_muscle(_MuscleOperator, bpy.types.Operator):
     bl_idname = "myoskin.select_muscle"
     bl_label = "Select Muscle"
     bl_options = {'REGISTER'}
+    edits_character = False
 
     index: IntProperty(name="Index", default=-1)
 

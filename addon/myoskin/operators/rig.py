@@ -2,14 +2,13 @@
 """Rig operators: Bind / Unbind the muscles to the character's armature, Bake the muscle joints to an Action,
 export glTF with the helper bones, bake the skin to a PC2 cache through the core.
 Small: call the rig service (binding), convert data (blender_io, rig_io), call the core, report."""
-import json
 import os
 
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
-from .. import binding, blender_io, core_loader, gltf_io, live, rig_io, runtime
+from .. import binding, blender_io, core_loader, gltf_io, live, muscle_io, rig_io, runtime
 from .muscles import _MuscleOperator, resolve_extracted, resolve_rig
 from ..state import rig_state
 
@@ -22,6 +21,15 @@ class MYOSKIN_OT_bind(_MuscleOperator, bpy.types.Operator):
 
     def run(self, context):
         skins, arm, state = resolve_extracted(context)
+        if state.bound:  # the muscles must be usable before the current bind is taken down
+            muscles = muscle_io.state_to_core(arm)
+            if not muscles:
+                raise ValueError(f"Every muscle of '{arm.name}' is disabled: enable at least one to bind")
+            core = core_loader.core()
+            for m in muscles:
+                core.reattach_muscle(m)
+            for skin in binding.bound_skins(arm):
+                binding.check_backup(skin)
         wm = context.window_manager
         wm.progress_begin(0, 2)
         try:
@@ -47,9 +55,12 @@ class MYOSKIN_OT_unbind(_MuscleOperator, bpy.types.Operator):
         if not rig_state(arm).bound:
             raise ValueError(f"'{arm.name}' is not bound")
         skins = binding.bound_skins(arm)
-        binding.unbind(arm)
+        problem = binding.unbind(arm)
         runtime.clear_error(arm)
-        return f"Unbound {arm.name}: original weights of {', '.join(o.name for o in skins)} restored"
+        message = f"Unbound {arm.name}: original weights of {', '.join(o.name for o in skins)} restored"
+        if problem:  # the weights came back from each mesh's backup; Armature modifiers Bind added may remain
+            return 'WARNING', f"{message}; {problem}: check the meshes' Armature modifiers"
+        return message
 
 
 class MYOSKIN_OT_clear_error(bpy.types.Operator):
@@ -86,7 +97,7 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
         if self.frame_end < self.frame_start:
             raise ValueError(f"Frame range {self.frame_start}-{self.frame_end} is empty")
         scene = context.scene
-        names = json.loads(state.bind_text.as_string())["joint_names"]
+        names = binding.read_bind_record(arm)["joint_names"]
         missing = [n for n in names if n not in arm.pose.bones]
         if missing:
             raise ValueError(f"Muscle bone '{missing[0]}' is missing (deleted or renamed?): bind again")
@@ -122,6 +133,7 @@ class MYOSKIN_OT_export_gltf(_MuscleOperator, bpy.types.Operator):
     bl_idname = "myoskin.export_gltf"
     bl_label = "Export glTF"
     bl_options = {'REGISTER'}
+    edits_character = False
 
     filepath: StringProperty(name="File", subtype='FILE_PATH', default="//character.glb")
 
@@ -154,6 +166,7 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
     bl_idname = "myoskin.bake_pc2"
     bl_label = "Bake PC2"
     bl_options = {'REGISTER'}
+    edits_character = False
 
     filepath: StringProperty(name="File", subtype='FILE_PATH', default="//skin.pc2")
     frame_start: IntProperty(name="Start", default=1)
