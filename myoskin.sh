@@ -3,6 +3,7 @@
 #   ./myoskin.sh demo [OUTPUT_DIR]   setup + build + the main job (default character in Blender) -> out/demo
 #   ./myoskin.sh test                setup + build + every test tier (C++, Python, Blender) through ctest
 #   ./myoskin.sh render-muscles [OUTPUT_DIR]  extract + render the MakeHuman characters' muscles -> out/muscles
+#   ./myoskin.sh gallery [OUTPUT_DIR]  the README's pictures: bent joints under LBS, DQS and Myoskin -> docs/gallery
 #   ./myoskin.sh bench               setup + build + the speed benchmarks (printed, never asserted)
 #   ./myoskin.sh build               setup + build only (and the packages in build/dist: the Blender 4.2+
 #                                    extension and the legacy zip for 3.4, each with the core for 3.11 and 3.13)
@@ -119,6 +120,15 @@ run_render_muscles() {
     "$shared/characters/makehuman_neutral/makehuman_neutral.glb"
 }
 
+run_gallery() {
+  local out="${1:-$ROOT/docs/gallery}" shared="${MYOSKIN_SHARED_DIR:-$ROOT/../shared}"
+  mkdir -p "$out"
+  BLENDER_USER_SCRIPTS="$BUILD/blender_scripts" blender -b --factory-startup --python-exit-code 1 \
+    --addons myoskin --python "$ROOT/examples/render_gallery.py" -- -o "$out" \
+    "$shared/characters/makehuman_muscular_male/makehuman_muscular_male.glb"
+  rm -f "$out"/*.png
+}
+
 run_bench() {
   log "bench_skin_quality (core: LBS, DQS, Myoskin at bent joints)"
   PYTHONPATH="$BUILD/blender_scripts/addons/myoskin" /usr/bin/python3 "$ROOT/benchmarks/bench_skin_quality.py" \
@@ -151,6 +161,7 @@ case "${1:-}" in
   test) setup; build; run_tests ;;
   demo) setup; build; run_demo "${2:-}" ;;
   render-muscles) setup; build; run_render_muscles "${2:-}" ;;
+  gallery) setup; build; run_gallery "${2:-}" ;;
   bench) setup; build; run_bench ;;
-  *) sed -n '2,10p' "$0"; exit 2 ;;
+  *) sed -n '2,11p' "$0"; exit 2 ;;
 esac
