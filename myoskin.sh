@@ -133,6 +133,8 @@ run_bench() {
   log "bench_skin_quality (core: LBS, DQS, Myoskin at bent joints)"
   PYTHONPATH="$BUILD/blender_scripts/addons/myoskin" /usr/bin/python3 "$ROOT/benchmarks/bench_skin_quality.py" \
     "${MYOSKIN_SHARED_DIR:-$ROOT/../shared}"
+  log "bench_limits (core: time and peak memory at ~1M vertices and with 500 muscles)"
+  PYTHONPATH="$BUILD/blender_scripts/addons/myoskin" /usr/bin/python3 "$ROOT/benchmarks/bench_limits.py"
   for b in "$BUILD"/bin/bench_*; do
     log "$(basename "$b")"
     if [ "$(basename "$b")" = bench_skinning ]; then "$b" --export "$BUILD/bench_skinning_data"; else "$b"; fi
