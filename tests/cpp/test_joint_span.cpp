@@ -64,3 +64,33 @@ TEST(JointSpan, NoLimbMuscleEndsInsideOneSplitSegment) {
     inside += m.region.rfind("torso.", 0) != 0 && segment(m.origin.bone) == segment(m.insertion.bone);
   EXPECT_GT(inside, 0);
 }
+
+TEST(JointSpan, AnEndAcrossARealJointAttachesNearIt) {
+  // The calf's belly lies below the knee; its origin, found on the thigh, attaches near the knee (spanCarry of
+  // the thigh's last bone above it), as the gastrocnemius on the femoral condyles: found 14 cm up the thigh, it
+  // shortened to half its length at 120 degrees of knee flexion and pinched a ridge into the calf.
+  const std::string path = test::sharedPath("characters/makehuman_muscular_male/makehuman_muscular_male.glb");
+  MYOSKIN_REQUIRE_SHARED(path);
+  const Character c = loadCharacter(path);
+  const std::vector<char> twist = twistSplits(c);
+  auto segment = [&](int b) {
+    while (b >= 0 && twist[b]) b = c.skeleton.bones[b].parent;
+    return b;
+  };
+  const EndOptions ends;
+  int across = 0;
+  for (const Muscle& m : extractMuscles(c).muscles) {
+    const int o = c.skeleton.find(m.origin.bone), e = c.skeleton.find(m.insertion.bone);
+    if (m.region.rfind("torso.", 0) == 0 || segment(o) == segment(e)) continue;
+    const Bone& distal = c.skeleton.bones[segment(e)];
+    const Bone& above = c.skeleton.bones[distal.parent];
+    const Vec3 J = distal.head, belly = m.sections[m.sections.size() / 2].center;
+    const bool bellyBelow = (belly - J).dot(distal.tail - distal.head) > 0;
+    const double reach = bellyBelow ? (m.origin.position - J).norm() : (m.insertion.position - J).norm();
+    const double carry = ends.spanCarry * (bellyBelow ? above.length() : distal.length());
+    EXPECT_LE(reach, carry * (1 + 1e-9)) << m.name << (bellyBelow ? " origin " : " insertion ") << reach;
+    ++across;
+  }
+  EXPECT_GE(across, 8);
+}
+

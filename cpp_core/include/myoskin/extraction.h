@@ -65,7 +65,9 @@ struct EndOptions {
   // (twistSplits) acts on no joint (the end search
   // looks one bone further, which is the twist split): its end nearer a real joint is carried over it onto the next
   // bone, this fraction of that bone's length (or, at the proximal end, of the segment's first bone) past the joint,
-  // as the biceps inserts on the forearm. 0 = off.
+  // as the biceps inserts on the forearm; an end the end search found across a real joint from the belly is
+  // brought to at most this fraction of its bone's length past the joint, as the gastrocnemius arises just above
+  // the knee. 0 = off.
   double spanCarry = 0.2;
 };
 

@@ -245,7 +245,39 @@ void spanRealJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<c
     return best;
   };
   const int root = segmentRoot(o);
-  if (segmentRoot(e) != root) return;  // already across a real joint
+  if (segmentRoot(e) != root) {  // already across a real joint: the end beyond it attaches near it
+    const int distal = segmentRoot(e), above = skeleton.bones[distal].parent;
+    if (above < 0) return;
+    const Vec3 J = skeleton.bones[distal].head;
+    const Vec3 belly = muscle.sections[muscle.sections.size() / 2].center;
+    const Bone& down = skeleton.bones[distal];
+    const Bone& up = skeleton.bones[above];
+    const bool bellyBelow = (belly - J).dot((down.tail - down.head).normalized()) > 0;
+    bool moved = false;
+    if (bellyBelow && up.length() > 0) {  // the origin lies above the joint: at most spanCarry of its bone
+      const double carry = options.spanCarry * up.length();
+      if ((muscle.origin.position - J).norm() > carry) {
+        muscle.origin = MuscleAttachment{up.name, J - carry * (up.tail - up.head).normalized()};
+        moved = true;
+      }
+    } else if (!bellyBelow && down.length() > 0) {  // the insertion lies below it
+      const double carry = options.spanCarry * down.length();
+      if ((muscle.insertion.position - J).norm() > carry) {
+        muscle.insertion = MuscleAttachment{down.name, J + carry * (down.tail - down.head).normalized()};
+        moved = true;
+      }
+    }
+    if (!moved) return;
+    double meanB = 0;
+    for (const MuscleSection& sec : muscle.sections) meanB += sec.b;
+    meanB /= static_cast<double>(muscle.sections.size());
+    const EndPoint op{skeleton.find(muscle.origin.bone), muscle.origin.position};
+    const EndPoint ep{skeleton.find(muscle.insertion.bone), muscle.insertion.position};
+    muscle.wrap = options.jointWrapFraction > 0 ? defaultJointWrap(op, ep, meanB * options.jointWrapFraction, skeleton)
+                                                : MuscleWrap{};
+    reattachEnds(muscle, options);
+    return;
+  }
   int last = root;  // the segment's last bone, through its twist children
   for (int next = continuation(last); next >= 0 && twist[next]; next = continuation(last)) last = next;
   if (last == root) return;  // one bone: the end search already reached across its joints (boneAndNeighbours)
