@@ -107,7 +107,14 @@ std::string anatomicalName(const Muscle& muscle, int bone, const std::string& fa
   const double lateral = (p - frame.centre).dot(frame.left);
   const std::string side = std::abs(lateral) < 0.5 * radius ? "" : lateral > 0 ? ".L" : ".R";
   const Bone& b = sk.bones[bone];
-  if (family == "shoulder") return "deltoid" + side;
+  if (family == "shoulder") {
+    // Round the shoulder: in front of the girdle bone and medial of its middle, the pectoral's clavicular part;
+    // else the deltoid capping the joint.
+    const Vec3 out = p - closestOnSegment(p, b.head, b.tail);
+    const double medial = std::abs((0.5 * (b.head + b.tail) - frame.centre).dot(frame.left)) - std::abs(lateral);
+    const bool chest = out.dot(frame.forward) > 0.0 && medial > 0.0;
+    return (chest ? "pectoral" : "deltoid") + side;
+  }
   if (family == "limb") {
     const Vec3 axis = (b.tail - b.head).normalized();
     const Vec3 out = across(p - closestOnSegment(p, b.head, b.tail), axis), ahead = across(frame.forward, axis);
