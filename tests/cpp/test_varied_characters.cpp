@@ -130,13 +130,14 @@ TEST(VariedCharacters, HeldOutRecallAndPrecision) {
     recall /= seeds, precision /= seeds;
     std::printf("held-out %s seeds %u-%u: mean recall %.3f, precision %.3f\n", bodyKindName(kind), kFirstHeldOut,
                 kLastHeldOut, recall, precision);
-    // Measured (extraction of branch main at b82becb): biped recall 0.653, precision 0.911; quadruped recall 0.828,
-    // precision 0.856. The target is 0.9 for both: asserted where it holds, printed where it does not.
+    // Measured: biped recall 0.653, precision 0.911; quadruped recall 0.828, precision 0.899 (0.856 before the neck
+    // planes kept to the neck's skin). The target is 0.9 for both: asserted where it holds, printed where it
+    // does not, and the floors below lie just under what was measured.
     if (recall < 0.9) std::printf("SHORT OF TARGET: %s mean recall %.3f < 0.9\n", bodyKindName(kind), recall);
     if (precision < 0.9) std::printf("SHORT OF TARGET: %s mean precision %.3f < 0.9\n", bodyKindName(kind), precision);
-    if (kind == BodyKind::Biped) EXPECT_GE(precision, 0.9);
-    EXPECT_GE(recall, 0.6) << bodyKindName(kind);     // no worse than measured
-    EXPECT_GE(precision, 0.8) << bodyKindName(kind);  // no worse than measured
+    const bool biped = kind == BodyKind::Biped;
+    EXPECT_GE(recall, biped ? 0.65 : 0.82) << bodyKindName(kind);
+    EXPECT_GE(precision, biped ? 0.9 : 0.89) << bodyKindName(kind);
   }
 }
 
@@ -155,7 +156,7 @@ TEST(VariedCharacters, SmoothBodiesGiveAlmostNoMuscles) {
       EXPECT_TRUE(r.report.analysed);
     }
   std::printf("smooth held-out bodies with at most 1 muscle: %d of %d\n", atMostOne, bodies);
-  EXPECT_GE(atMostOne, bodies - 2);  // measured: 14 of 16 (the target: all)
+  EXPECT_GE(atMostOne, bodies - 1);  // measured: 15 of 16 (the target: all; 14 before the neck planes kept to the neck)
 }
 
 // ============================================================================

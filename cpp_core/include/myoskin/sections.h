@@ -91,7 +91,8 @@ struct PlaneOptions {
 //              consecutive 2D frames never flip.
 //   "shoulder" one instance per shoulder chain (clavicle, shoulder): perpendicular planes from
 //              shoulderStart of the chain to the shoulder joint (the trapezius/deltoid cap).
-//   "neck"     one instance per neck chain: perpendicular planes.
+//   "neck"     one instance per neck chain: perpendicular planes whose region is the neck's bones and everything
+//              below them (the head), so where a plane cuts into the trunk its trunk runs become chords.
 //   "abdomen"  one instance: parallel planes normal to the spine's overall direction, from above the hip
 //              joints to the top of the spine, each centred on the spine where it crosses the plane.
 // Overlaps (shoulder vs upper arm, abdomen vs shoulder) are resolved later per muscle by dominance

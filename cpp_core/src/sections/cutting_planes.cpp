@@ -163,8 +163,13 @@ std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const st
   }
   index = 0;
   for (const auto& chain : chainsOf(sk, roles, BoneRole::Neck)) {
+    // A neck plane keeps to the neck's and head's skin: where it cuts into the trunk (the neck's base, a
+    // quadruped's sloping neck) the trunk's runs become chords, so its lobes are no bumps of the neck.
+    std::set<int> region;
+    addSubtree(sk, chain.front(), region);
     const size_t first = planes.size();
-    chainPlanes(sk, chain, "neck", index++, spacing, 0.0, options, torsoRegion, {}, 0.0, planes);
+    chainPlanes(sk, chain, "neck", index++, spacing, 0.0, options, std::vector<int>(region.begin(), region.end()), {},
+                0.0, planes);
     for (size_t i = first; i < planes.size(); ++i) planes[i].mirrorAxis = true;
   }
 
