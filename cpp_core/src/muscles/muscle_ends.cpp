@@ -219,6 +219,22 @@ Muscle buildMuscleEnds(const MuscleChain& chain, const std::vector<SectionBumps>
 
 void reattachEnds(Muscle& muscle, const EndOptions& options);
 
+namespace {
+
+// After an end moved: the default joint wrap for the new ends, then the root curve's ends rebuilt.
+void rewrapAndReattach(Muscle& muscle, const Skeleton& skeleton, const EndOptions& options) {
+  double meanB = 0;
+  for (const MuscleSection& sec : muscle.sections) meanB += sec.b;
+  meanB /= static_cast<double>(muscle.sections.size());
+  const EndPoint op{skeleton.find(muscle.origin.bone), muscle.origin.position};
+  const EndPoint ep{skeleton.find(muscle.insertion.bone), muscle.insertion.position};
+  muscle.wrap = options.jointWrapFraction > 0 ? defaultJointWrap(op, ep, meanB * options.jointWrapFraction, skeleton)
+                                              : MuscleWrap{};
+  reattachEnds(muscle, options);
+}
+
+}  // namespace
+
 void spanRealJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<char>& twist, const EndOptions& options) {
   if (!(options.spanCarry > 0) || muscle.sections.empty()) return;
   const int o = skeleton.find(muscle.origin.bone), e = skeleton.find(muscle.insertion.bone);
@@ -267,15 +283,7 @@ void spanRealJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<c
         moved = true;
       }
     }
-    if (!moved) return;
-    double meanB = 0;
-    for (const MuscleSection& sec : muscle.sections) meanB += sec.b;
-    meanB /= static_cast<double>(muscle.sections.size());
-    const EndPoint op{skeleton.find(muscle.origin.bone), muscle.origin.position};
-    const EndPoint ep{skeleton.find(muscle.insertion.bone), muscle.insertion.position};
-    muscle.wrap = options.jointWrapFraction > 0 ? defaultJointWrap(op, ep, meanB * options.jointWrapFraction, skeleton)
-                                                : MuscleWrap{};
-    reattachEnds(muscle, options);
+    if (moved) rewrapAndReattach(muscle, skeleton, options);
     return;
   }
   int last = root;  // the segment's last bone, through its twist children
@@ -296,14 +304,7 @@ void spanRealJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<c
   } else {
     return;
   }
-  double meanB = 0;
-  for (const MuscleSection& sec : muscle.sections) meanB += sec.b;
-  meanB /= static_cast<double>(muscle.sections.size());
-  const EndPoint op{skeleton.find(muscle.origin.bone), muscle.origin.position};
-  const EndPoint ep{skeleton.find(muscle.insertion.bone), muscle.insertion.position};
-  muscle.wrap = options.jointWrapFraction > 0 ? defaultJointWrap(op, ep, meanB * options.jointWrapFraction, skeleton)
-                                              : MuscleWrap{};
-  reattachEnds(muscle, options);
+  rewrapAndReattach(muscle, skeleton, options);
 }
 
 void reattachMuscle(Muscle& muscle, const EndOptions& options, const SurfaceOptions& surface) {
