@@ -28,13 +28,16 @@ def many_muscles(core, character, muscles, count):
     names = list(character.bone_names)
     heads, tails = np.asarray(character.bone_heads), np.asarray(character.bone_tails)
     doc = json.loads(core.muscles_to_json(muscles))
+    if not doc["muscles"]:
+        raise SystemExit("bench_limits: the body gave no muscles to repeat")
+    rounds = -(-count // len(doc["muscles"]))  # ceil: each round turned by 2 pi / rounds
     out = []
     for k in range(count):
         m = json.loads(json.dumps(doc["muscles"][k % len(doc["muscles"])]))
         b = names.index(m["origin"]["bone"])
         axis = tails[b] - heads[b]
         axis /= np.linalg.norm(axis)
-        angle = 2 * np.pi * (k // len(doc["muscles"])) / max(1, count // len(doc["muscles"]))
+        angle = 2 * np.pi * (k // len(doc["muscles"])) / rounds
         kx = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
         rot = np.eye(3) + np.sin(angle) * kx + (1 - np.cos(angle)) * kx @ kx
 

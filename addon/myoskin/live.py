@@ -419,8 +419,22 @@ def on_reload(*_args):
 
 @persistent
 def on_load(*_args):
-    """load_post: another file, so the errors reported for the armatures of the last one are gone too."""
+    """load_post: another file, so the errors reported for the armatures of the last one are gone too. A rig
+    bound before Preserve Volume became the default (the setting never stored) keeps the mode its Armature
+    modifiers were bound with."""
     runtime.clear_error()
+    for obj in bpy.data.objects:
+        try:
+            if obj.type != 'ARMATURE' or obj.library is not None:
+                continue
+            state = obj.myoskin
+            if not state.bound or state.is_property_set("preserve_volume"):
+                continue
+            skins = binding.bound_skins(obj)
+            if skins:
+                state.preserve_volume = binding.preserve_volume_of(skins[0], obj)
+        except Exception as e:  # a damaged rig must not stop the file from loading
+            print(f"myoskin: {obj.name}: {e}")
 
 
 def _handlers():

@@ -169,4 +169,23 @@ def test_pc2_bake_uses_the_same_mode_and_equals_blender():
     assert np.abs(frames[2] - linear).max() / size > 1e-3  # the bake really is in the preserve-volume mode
 
 
+def test_a_rig_bound_before_the_default_changed_keeps_its_linear_mode_on_load():
+    """Preserve Volume is on by default; a .blend whose rig was bound linear with the setting never stored (as
+    the old default left it) opens with the setting off, so the next Bind keeps the mode it was bound with."""
+    arm, skin, state = bound_arm(preserve_volume=False)
+    assert not state.preserve_volume
+    state.property_unset("preserve_volume")  # as a file saved before the default changed
+    assert state.preserve_volume and not armature_modifier(skin, arm).use_deform_preserve_volume
+    path = os.path.join(TMP, "old_default.blend")
+    names = arm.name, skin.name
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    arm, skin = bpy.data.objects[names[0]], bpy.data.objects[names[1]]
+    assert not arm.myoskin.preserve_volume and not armature_modifier(skin, arm).use_deform_preserve_volume
+    # a new rig takes the new default
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    assert bpy.context.view_layer.objects.active.parent.myoskin.preserve_volume
+
+
 runner.run()

@@ -83,6 +83,7 @@ TEST(JointSpan, AnEndAcrossARealJointAttachesNearIt) {
     const int o = c.skeleton.find(m.origin.bone), e = c.skeleton.find(m.insertion.bone);
     if (m.region.rfind("torso.", 0) == 0 || segment(o) == segment(e)) continue;
     const Bone& distal = c.skeleton.bones[segment(e)];
+    if (distal.parent < 0) continue;
     const Bone& above = c.skeleton.bones[distal.parent];
     const Vec3 J = distal.head, belly = m.sections[m.sections.size() / 2].center;
     const bool bellyBelow = (belly - J).dot(distal.tail - distal.head) > 0;

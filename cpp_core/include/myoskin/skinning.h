@@ -45,10 +45,9 @@ struct HybridWeightOptions {
   // Fraction of the straight rest line origin -> insertion, from each end, over which the muscle's weight
   // fades to 0, so the skin over the tendons and attachments follows the bones (0 = no fade).
   double endTaper = 0.5;
-  // Further relief in the skeleton's joint creases: each muscle's weight (after smoothing) is multiplied by
-  // 1 - creaseRelief * beta, beta = 2 (1 - the vertex's largest segment share) clamped to [0, 1] (segments join
-  // bones across twist splits; 0 on skin one segment moves rigidly, 1 at an even blend across a real joint)
-  // (0 = off, the default). Without it a muscle already leaves the crease to the skeleton: it takes weight only
+  // Further relief in the skeleton's joint creases: each muscle's weight (before smoothing) is multiplied by
+  // 1 - creaseRelief * beta, beta = 2 (1 - the vertex's largest bone share) clamped to [0, 1] (0 on skin one
+  // bone moves rigidly, 1 at an even two-bone blend; twist splits count too) (0 = off, the default). Without it a muscle already leaves the crease to the skeleton: it takes weight only
   // from its belly's segment, and none at the plane of a real joint it crosses (fading over falloffDistance
   // radii). Measured (synthetic arm seed 2, elbow 70 degrees; plain LBS -13.9 %): elbow region -4.6 % with 0,
   // -5.4 % with 0.5 (before the segment rule and joint fade: +12.2 %, the brachialis lifting the crease).

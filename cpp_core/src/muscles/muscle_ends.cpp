@@ -263,7 +263,7 @@ void spanRealJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<c
   const int root = segmentRoot(o);
   if (segmentRoot(e) != root) {  // already across a real joint: the end beyond it attaches near it
     const int distal = segmentRoot(e), above = skeleton.bones[distal].parent;
-    if (above < 0) return;
+    if (above < 0 || segmentRoot(above) != root) return;  // only an insertion one real joint below the origin
     const Vec3 J = skeleton.bones[distal].head;
     const Vec3 belly = muscle.sections[muscle.sections.size() / 2].center;
     const Bone& down = skeleton.bones[distal];

@@ -93,6 +93,7 @@ BodyFrame bodyFrame(const Skeleton& sk, const std::vector<BoneRole>& roles, cons
   }
   f.forward = forward.normalized();
   f.left = f.up.cross(f.forward);
+  f.sided = roots.size() >= 2;
   f.valid = true;
   return f;
 }
@@ -105,7 +106,7 @@ std::string anatomicalName(const Muscle& muscle, int bone, const std::string& fa
   for (const MuscleSection& s : muscle.sections) radius += std::sqrt(std::max(s.a * s.b, 0.0));
   radius /= static_cast<double>(muscle.sections.size());
   const double lateral = (p - frame.centre).dot(frame.left);
-  const std::string side = std::abs(lateral) < 0.5 * radius ? "" : lateral > 0 ? ".L" : ".R";
+  const std::string side = !frame.sided || std::abs(lateral) < 0.5 * radius ? "" : lateral > 0 ? ".L" : ".R";
   const Bone& b = sk.bones[bone];
   if (family == "shoulder") {
     // Round the shoulder: in front of the girdle bone and medial of its middle, the pectoral's clavicular part;
@@ -134,7 +135,9 @@ std::string anatomicalName(const Muscle& muscle, int bone, const std::string& fa
     Vec3 arms = Vec3::Zero(), legs = Vec3::Zero();
     int na = 0, nl = 0;
     for (int x = 0; x < sk.numBones(); ++x) {
-      if (frame.segment[x] != 0 || (sk.bones[x].parent >= 0 && frame.segment[sk.bones[x].parent] == 0)) continue;
+      if (frame.limb[x] == 0 || frame.segment[x] != 0 ||
+          (sk.bones[x].parent >= 0 && frame.segment[sk.bones[x].parent] == 0))
+        continue;
       (frame.limb[x] == 1 ? arms : legs) += sk.bones[x].head;
       (frame.limb[x] == 1 ? na : nl) += 1;
     }

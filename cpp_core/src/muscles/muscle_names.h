@@ -15,6 +15,7 @@ namespace myoskin::detail {
 // down as hooves do, the neck's); left = up x forward. valid is false when there are no legs or no forward.
 struct BodyFrame {
   bool valid = false;
+  bool sided = false;          // two limbs or more: the centre is the mirror plane, so .L / .R mean something
   Vec3 up = Vec3::Zero(), forward = Vec3::Zero(), left = Vec3::Zero();
   Vec3 centre = Vec3::Zero();  // the midpoint of the limb roots (on the mirror plane of a symmetric rig)
   std::vector<int> limb;       // #B: 0 none, 1 arm, 2 leg

@@ -342,7 +342,7 @@ std::vector<char> twistSplits(const Skeleton& sk, const SkinWeights& w) {
     if (!(total > 0)) continue;
     for (int k = 0; k < w.influences(); ++k) {
       const int c = w.joints(v, k);
-      if (c < 0 || sk.bones[c].parent < 0) continue;
+      if (c < 0 || c >= nb || sk.bones[c].parent < 0) continue;
       double wc = 0.0, wp = 0.0;
       for (int q = 0; q < w.influences(); ++q) {
         if (w.joints(v, q) == c) wc += w.weights(v, q);

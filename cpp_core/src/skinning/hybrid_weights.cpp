@@ -149,6 +149,7 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
     }
     for (int m = 0; m < rig.numMuscles(); ++m) {
       const Muscle& muscle = rig.muscles()[m];
+      if (muscle.sections.empty()) continue;  // (a muscle read from a file with a surface but no sections)
       const Vec3 belly = muscle.sections[muscle.sections.size() / 2].center;
       int nearest = -1;
       double best = std::numeric_limits<double>::infinity();
