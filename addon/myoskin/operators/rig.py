@@ -26,8 +26,13 @@ class MYOSKIN_OT_bind(_MuscleOperator, bpy.types.Operator):
             if not muscles:
                 raise ValueError(f"Every muscle of '{arm.name}' is disabled: enable at least one to bind")
             core = core_loader.core()
-            for m in muscles:
-                core.reattach_muscle(m)
+            muscles = [core.reattach_muscle(m) for m in muscles]
+            try:  # the bound skeleton, from the bind record (a damaged record is rewritten by the new bind)
+                skeleton = live.live_rig(arm).character
+            except Exception:
+                skeleton = None
+            if skeleton is not None:
+                core.MuscleRig(skeleton, muscles)  # the rig's own checks (ends, wraps, joints)
             for skin in binding.bound_skins(arm):
                 binding.check_backup(skin)
         wm = context.window_manager
