@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 
+#include "muscles/muscle_util.h"
 #include "myoskin/errors.h"
 #include "myoskin/sections.h"
 #include "myoskin/skinning.h"
@@ -156,9 +157,7 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
       for (int b = 0; b < nb; ++b) {
         if (!spans[m][b]) continue;
         const Bone& bone = skeleton.bones[b];
-        const Vec3 d = bone.tail - bone.head;
-        const double t = d.squaredNorm() > 0 ? std::clamp((belly - bone.head).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
-        const double dist = (bone.head + t * d - belly).norm();
+        const double dist = (detail::closestOnSegment(belly, bone.head, bone.tail) - belly).norm();
         if (dist < best) best = dist, nearest = b;
       }
       if (nearest < 0) continue;
