@@ -74,7 +74,7 @@ void run(const std::string& label, const Character& c, const Pose& pose, double 
   SkinSolveOptions o;
   o.threads = kThreads;
   const auto b0 = std::chrono::steady_clock::now();
-  SkinSolver solver(c.mesh, rig, defaultGoalWeights(combined, nb, o.slide), o);
+  SkinSolver solver(c.mesh, rig, defaultGoalWeights(combined, nb, o.slide, o.fullShare), o);
   const double buildMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - b0).count();
   MuscleRigState state = rig.makeState();
   std::vector<Mat4> t;

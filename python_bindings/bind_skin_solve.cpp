@@ -41,13 +41,14 @@ struct PySkinSolver {
 void bindSkinSolve(py::module_& m) {
   m.def(
       "default_goal_weights",
-      [](const IntArray& joints, const DoubleArray& weights, int numBones, double slide) {
+      [](const IntArray& joints, const DoubleArray& weights, int numBones, double slide, double fullShare) {
         const SkinWeights w = combinedWeightsArg(joints, weights);
-        return defaultGoalWeights(w, numBones, slide);
+        return defaultGoalWeights(w, numBones, slide, fullShare);
       },
       py::arg("joints"), py::arg("weights"), py::arg("num_bones"), py::arg("slide") = SkinSolveOptions{}.slide,
+      py::arg("full_share") = SkinSolveOptions{}.fullShare,
       "#V goal weights from combined skin weights (hybrid_weights: #V by K over bones then muscle joints): "
-      "1 - slide * the muscle joints' share of each vertex.");
+      "1 - slide * min(1, share / full_share), share = the muscle joints' part of each vertex's weight.");
 
   py::class_<PySkinSolver>(m, "SkinSolver",
                            "The per-frame skin solve (Gray & Hutchinson): from the skinned pose as goal, a fixed budget "

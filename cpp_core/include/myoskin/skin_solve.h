@@ -17,9 +17,12 @@
 // Containment and depth: each muscle surface keeps a bounding volume hierarchy built once on its rest topology
 // and refitted every frame (posed surfaces keep topology); a point's closest surface point gives its distance,
 // and the sign comes from the angle-weighted pseudo-normal of the closest feature (face, edge or vertex), which
-// is exact on closed, consistently oriented, manifold meshes (Baerentzen & Aanaes 2005). Overlapping muscles are
-// handled as a union by repeated projection: a vertex pushed out of one muscle into another is pushed again, up to
-// SkinSolveOptions::collisionRounds times per pass.
+// is exact on closed, consistently oriented, manifold meshes that do not cross themselves (Baerentzen & Aanaes
+// 2005). A muscle whose rest surface crosses itself (lofted sections that overlap where a muscle turns: MakeHuman's
+// pectorals and quadriceps) is signed by ray parity instead (majority of three skew rays), as CGAL's
+// Side_of_triangle_mesh does. Overlapping muscles are handled as a union: a vertex pushed out of one muscle into
+// another is pushed again, up to SkinSolveOptions::collisionRounds times, then it escapes along the way out of the
+// muscle that still holds it in doubling steps (up to 8 radii) until it is outside all of them.
 //
 // Regions: only vertices whose goal weight is below 1 relax; they split into connected pieces of the skin
 // (right arm, left leg...), each solved against only the muscles within its reach, pieces in parallel. Vertices
@@ -46,9 +49,12 @@ namespace myoskin {
 
 struct SkinSolveOptions {
   int iterations = 12;  // fixed budget per frame: relaxation sweeps (Jacobi), each followed by collision
-  // Default goal weight from the skin weights: g = 1 - slide * (muscle joints' share of the vertex's weight), so
-  // skin over a muscle's belly (share 1) slides most and skin the bones alone move keeps the skinned pose.
-  double slide = 0.9;
+  // Default goal weight from the skin weights: g = 1 - slide * min(1, share / fullShare), share = the muscle
+  // joints' part of the vertex's weight, so skin over a muscle's belly slides most and skin the bones alone move
+  // keeps the skinned pose (g = 1). The goal weight blends each iteration: x <- g x_goal + (1 - g) x_spring.
+  double slide = 0.95;
+  // Muscle share from which the skin slides fully (MakeHuman's skin over the biceps' belly carries 0.25-0.5).
+  double fullShare = 0.25;
   // Springs' pull in [0, 1]: the spring target is x + springStiffness (x_spring - x) before the goal blend.
   double springStiffness = 1.0;
   // Margin a pushed-out vertex keeps from a muscle surface, in mean skin edge lengths.
@@ -70,6 +76,7 @@ struct SkinSolveReport {
   double maxRestDepth = 0.0;    // deepest of those, metres
   double meanEdgeLength = 0.0;  // of the skin at rest, metres
   std::vector<std::pair<int, int>> overlappingMuscles;  // muscle pairs whose rest surfaces intersect
+  std::vector<int> selfCrossingMuscles;                 // muscles whose rest surface crosses itself (ray parity)
   std::vector<int> regionSize;                          // vertices per region
   std::vector<std::vector<int>> regionMuscles;          // muscles each region collides with
 };
@@ -79,9 +86,10 @@ struct SkinSolveReport {
 // ============================================================================
 
 // #V goal weights from combined skin weights (#V by K over [0, numBones + #J), computeHybridWeights): g = 1 -
-// slide * (weight on joints >= numBones) / (row sum). A row with no weight gets 1. Throws InputError on a bad
-// slide (outside [0, 1]) or numBones < 0.
-Eigen::VectorXd defaultGoalWeights(const SkinWeights& combinedWeights, int numBones, double slide = 0.9);
+// slide * min(1, share / fullShare), share = (weight on joints >= numBones) / (row sum). A row with no weight gets
+// 1. Throws InputError on a bad slide (outside [0, 1]), fullShare (outside (0, 1]) or numBones < 0.
+Eigen::VectorXd defaultGoalWeights(const SkinWeights& combinedWeights, int numBones, double slide = 0.95,
+                                   double fullShare = 0.25);
 
 // ============================================================================
 // The stateful solver: built once (topology, adjacency, regions, rest depths, muscle hierarchies), then

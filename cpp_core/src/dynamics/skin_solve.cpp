@@ -69,8 +69,10 @@ std::vector<std::pair<int, int>> skinEdges(const Mesh& skin) {
 // Goal weights
 // ============================================================================
 
-Eigen::VectorXd defaultGoalWeights(const SkinWeights& combinedWeights, int numBones, double slide) {
+Eigen::VectorXd defaultGoalWeights(const SkinWeights& combinedWeights, int numBones, double slide,
+                                   double fullShare) {
   if (!(slide >= 0.0 && slide <= 1.0)) throw InputError("skin solve: slide must lie in [0, 1]");
+  if (!(fullShare > 0.0 && fullShare <= 1.0)) throw InputError("skin solve: fullShare must lie in (0, 1]");
   if (numBones < 0) throw InputError("skin solve: numBones must be >= 0");
   const int nv = combinedWeights.numVertices();
   if (combinedWeights.weights.rows() != nv || combinedWeights.weights.cols() != combinedWeights.joints.cols())
@@ -86,7 +88,7 @@ Eigen::VectorXd defaultGoalWeights(const SkinWeights& combinedWeights, int numBo
       total += w;
       if (j >= numBones) muscle += w;
     }
-    if (total > 0.0) g[v] = 1.0 - slide * (muscle / total);
+    if (total > 0.0) g[v] = 1.0 - slide * std::min(1.0, muscle / total / fullShare);
   }
   return g;
 }
@@ -156,7 +158,7 @@ bool SkinSolver::Impl::project(Vec3& p, double allowed, const std::vector<int>& 
       // Still inside (the nearest sheet was a fold of a surface that crosses itself): go on outwards from the
       // closest point in doubling steps until outside, at most 4 muscle radii.
       for (double step = std::max(2.0 * margin, 0.01 * radius[m]); allowed <= 0.0 && step < 4.0 * radius[m] &&
-                                                                    bvh[m].inside(p);
+                                                                    bvh[m].closest(p).distance < 0.0;
            step *= 2.0)
         p = hit.point + out * step;
       any = true;
@@ -171,11 +173,11 @@ bool SkinSolver::Impl::project(Vec3& p, double allowed, const std::vector<int>& 
   if (allowed > 0.0) return moved;
   auto insideAny = [&](const Vec3& q) {
     for (int m : list)
-      if (bvh[m].bounds().contains(q) && bvh[m].inside(q)) return true;
+      if (bvh[m].bounds().contains(q) && bvh[m].closest(q).distance < 0.0) return true;
     return false;
   };
   for (int m : list) {
-    if (!bvh[m].bounds().contains(p) || !bvh[m].inside(p)) continue;
+    if (!bvh[m].bounds().contains(p) || !(bvh[m].closest(p).distance < 0.0)) continue;
     const detail::SurfaceHit hit = bvh[m].closest(p);
     const Vec3 d = hit.point - p;
     const double len = d.norm();
@@ -344,6 +346,10 @@ SkinSolver::SkinSolver(const Mesh& skin, const MuscleRig& rig, const Eigen::Vect
     if (!(enclosedVolume(surface.vertices, surface.triangles) > 0.0))
       throw InputError("skin solve: the surface of " + muscleLabel(rig, m) + " is oriented inwards or flat");
     s.bvh[m].build(surface.vertices, surface.triangles);
+    if (selfIntersections(surface.vertices, surface.triangles) > 0) {
+      s.bvh[m].setSelfCrossing(true);
+      s.report.selfCrossingMuscles.push_back(m);
+    }
     s.radius[m] = muscleRadius(rig.muscles()[m], surface);
     s.muscleVertices[m] = surface.numVertices();
     s.allMuscles.push_back(m);
@@ -491,7 +497,8 @@ double SkinSolver::signedDistance(const Vec3& p) const {
 
 Points solveSkin(const Mesh& skin, const MuscleRig& rig, const SkinWeights& combinedWeights, const Points& goal,
                  const MuscleRigState& state, const SkinSolveOptions& options) {
-  SkinSolver solver(skin, rig, defaultGoalWeights(combinedWeights, rig.skeleton().numBones(), options.slide),
+  SkinSolver solver(skin, rig,
+                    defaultGoalWeights(combinedWeights, rig.skeleton().numBones(), options.slide, options.fullShare),
                     options);
   Points out;
   solver.solve(goal, state, out);

@@ -209,7 +209,8 @@ SurfaceHit TriangleBvh::closest(const Vec3& p) const {
   hit.normal = nn > 0 ? Vec3(normal / nn) : Vec3::Zero();
   hit.point = bestPoint;
   const double d = std::sqrt(best);
-  hit.distance = inside(p) ? -d : d;
+  const bool in = selfCrossing_ ? inside(p) : (p - bestPoint).dot(hit.normal) < 0.0;
+  hit.distance = in ? -d : d;
   return hit;
 }
 
@@ -258,9 +259,8 @@ bool TriangleBvh::inside(const Vec3& p) const {
   static const Vec3 dirs[3] = {Vec3(1.0, 0.3141592, 0.2718281).normalized(),
                                Vec3(-0.2718281, 1.0, 0.1414213).normalized(),
                                Vec3(0.1732050, -0.3141592, 1.0).normalized()};
-  int odd = 0;
-  for (const Vec3& d : dirs) odd += crossings(p, d) % 2;
-  return odd >= 2;
+  const int a = crossings(p, dirs[0]) % 2, b = crossings(p, dirs[1]) % 2;
+  return a == b ? a == 1 : crossings(p, dirs[2]) % 2 == 1;
 }
 
 }  // namespace myoskin::detail

@@ -1,7 +1,8 @@
 // A bounding volume hierarchy over one closed triangle mesh whose topology is fixed (a muscle surface): built
-// once on the rest surface, refitted per frame without allocation; closest point, and containment by ray parity
-// (the majority of three rays in fixed, skew directions), which stays defined where a lofted surface crosses
-// itself (extracted pectorals and quadriceps do at rest), unlike the sign of a pseudo-normal.
+// once on the rest surface, refitted per frame without allocation; closest point, signed by the angle-weighted
+// pseudo-normal of the closest feature (Baerentzen & Aanaes 2005: exact on closed, oriented, manifold meshes that
+// do not cross themselves), or, for a surface that crosses itself (setSelfCrossing: extracted pectorals and
+// quadriceps do at rest), by ray parity (the majority of three rays in fixed, skew directions), which stays defined.
 #pragma once
 #include <Eigen/Geometry>
 #include <vector>
@@ -28,6 +29,9 @@ class TriangleBvh {
   SurfaceHit closest(const Vec3& p) const;
   // Whether p lies inside: an odd number of crossings along at least two of three rays. No allocation.
   bool inside(const Vec3& p) const;
+  // Sign closest() by ray parity instead of the pseudo-normal.
+  void setSelfCrossing(bool on) { selfCrossing_ = on; }
+  bool selfCrossing() const { return selfCrossing_; }
   // Bounds of the surface as last refitted.
   const Eigen::AlignedBox3d& bounds() const { return nodes_.front().box; }
   int numTriangles() const { return static_cast<int>(tri_.rows()); }
@@ -42,6 +46,7 @@ class TriangleBvh {
   int crossings(const Vec3& p, const Vec3& dir) const;
   int buildNode(std::vector<int>& order, int begin, int end, const std::vector<Vec3>& centroid);
 
+  bool selfCrossing_ = false;
   Triangles tri_;
   std::vector<Node> nodes_;
   std::vector<int> order_;           // triangles in leaf order
