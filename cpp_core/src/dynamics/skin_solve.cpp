@@ -98,6 +98,12 @@ Eigen::VectorXd defaultGoalWeights(const SkinWeights& combinedWeights, int numBo
 // ============================================================================
 
 struct SkinSolver::Impl {
+  // What a projection measured at its final point (outside every muscle of its list): the muscle with the smallest
+  // lower bound on its distance, that bound, and the smallest bound over the others (0 when unknown or inside).
+  struct Clearance {
+    int nearest = -1;
+    double near = 0.0, far = 0.0;
+  };
   SkinSolveOptions options;
   SkinSolveReport report;
   int nv = 0;
@@ -120,13 +126,18 @@ struct SkinSolver::Impl {
   // Scratch.
   Points buffer[2];
   Points goal;
-  Points anchor;              // per vertex: where its clearance was measured this frame
-  Eigen::VectorXd clearance;  // per vertex: distance from anchor within which no muscle of its region lies (< 0: none)
+  // Per sliding vertex, this frame: within near of anchorNear its nearest muscle cannot hold it, within far of
+  // anchorFar no other muscle of its region can (muscles do not move within a frame), so queries are skipped.
+  Points anchorNear, anchorFar;
+  std::vector<Clearance> clearance;
   std::unique_ptr<tbb::task_arena> arena;
 
-  // Pushes p out of the muscles `list` to at most its allowed depth; true if it moved. clearance (if not null)
-  // receives a lower bound of p's final distance to the muscles of the list when p ends outside all of them, else 0.
-  bool project(Vec3& p, double allowed, const std::vector<int>& list, double* clearance = nullptr) const;
+  // Pushes p out of the muscles list[0..count) to at most its allowed depth; true if it moved. clear (if not
+  // null) receives the clearances at the final p.
+  bool project(Vec3& p, double allowed, const int* list, int count, Clearance* clear = nullptr) const;
+  bool project(Vec3& p, double allowed, const std::vector<int>& list) const {
+    return project(p, allowed, list.data(), static_cast<int>(list.size()));
+  }
   // Refits every muscle's hierarchy to the state's surfaces (validated).
   void refit(const MuscleRigState& state);
   // The iteration budget on one region (buffers hold the goal everywhere at start).
@@ -134,20 +145,31 @@ struct SkinSolver::Impl {
   void run();
 };
 
-bool SkinSolver::Impl::project(Vec3& p, double allowed, const std::vector<int>& list, double* clearance) const {
+bool SkinSolver::Impl::project(Vec3& p, double allowed, const int* list, int count, Clearance* clearOut) const {
   bool moved = false;
   for (int round = 0; round < options.collisionRounds; ++round) {
     bool any = false;
-    double clear = std::numeric_limits<double>::infinity();
-    for (int m : list) {
+    Clearance c;
+    c.near = c.far = std::numeric_limits<double>::infinity();
+    auto bound = [&](int m, double d) {  // keep the smallest and the second smallest bound
+      if (d < c.near) {
+        c.far = c.near;
+        c.near = d;
+        c.nearest = m;
+      } else {
+        c.far = std::min(c.far, d);
+      }
+    };
+    for (int i = 0; i < count; ++i) {
+      const int m = list[i];
       const Eigen::AlignedBox3d& box = bvh[m].bounds();
       if (!box.contains(p)) {  // outside the box: outside the muscle, at least the box's distance away
-        clear = std::min(clear, (p - p.cwiseMax(box.min()).cwiseMin(box.max())).norm());
+        bound(m, (p - p.cwiseMax(box.min()).cwiseMin(box.max())).norm());
         continue;
       }
       const detail::SurfaceHit hit = bvh[m].closest(p);
       if (-hit.distance <= allowed + tolerance) {
-        clear = std::min(clear, std::max(hit.distance, 0.0));
+        bound(m, std::max(hit.distance, 0.0));
         continue;
       }
       // Move along the way out (the closest point's direction, or its normal on the surface) to the allowed depth.
@@ -162,9 +184,12 @@ bool SkinSolver::Impl::project(Vec3& p, double allowed, const std::vector<int>& 
            step *= 2.0)
         p = hit.point + out * step;
       any = true;
-      clear = 0.0;
+      bound(m, 0.0);
     }
-    if (clearance) *clearance = allowed > 0.0 ? 0.0 : clear;
+    if (clearOut) {
+      *clearOut = c;
+      if (allowed > 0.0 || any) clearOut->near = clearOut->far = 0.0;
+    }
     if (!any) return moved;
     moved = true;
   }
@@ -172,11 +197,12 @@ bool SkinSolver::Impl::project(Vec3& p, double allowed, const std::vector<int>& 
   // first muscle that still holds p, in doubling steps (at most 8 of its radii).
   if (allowed > 0.0) return moved;
   auto insideAny = [&](const Vec3& q) {
-    for (int m : list)
-      if (bvh[m].bounds().contains(q) && bvh[m].closest(q).distance < 0.0) return true;
+    for (int i = 0; i < count; ++i)
+      if (bvh[list[i]].bounds().contains(q) && bvh[list[i]].closest(q).distance < 0.0) return true;
     return false;
   };
-  for (int m : list) {
+  for (int i = 0; i < count; ++i) {
+    const int m = list[i];
     if (!bvh[m].bounds().contains(p) || !(bvh[m].closest(p).distance < 0.0)) continue;
     const detail::SurfaceHit hit = bvh[m].closest(p);
     const Vec3 d = hit.point - p;
@@ -234,11 +260,24 @@ void SkinSolver::Impl::solveRegion(int r) {
         const Vec3 spring = count > 0 ? Vec3(x + k * (sum / count - x)) : x;
         const double g = goalWeight[v];
         Vec3 p = g * goal.row(v).transpose() + (1.0 - g) * spring;
-        // Still within the clearance measured this frame: no muscle of the region can hold p (they do not move
-        // within a frame), so no query.
-        if (!(clearance[v] > 0.0 && (p - anchor.row(v).transpose()).norm() < clearance[v])) {
-          project(p, restDepth[v], muscles, &clearance[v]);
-          anchor.row(v) = p.transpose();
+        // Within the clearances measured this frame no muscle of the region can hold p: query only what it left.
+        Clearance& c = clearance[v];
+        const bool farClear = c.far > 0.0 && (p - anchorFar.row(v).transpose()).norm() < c.far;
+        if (farClear && (p - anchorNear.row(v).transpose()).norm() < c.near) {
+          // nothing to test
+        } else if (farClear) {
+          Clearance one;
+          project(p, restDepth[v], &c.nearest, 1, &one);
+          if ((p - anchorFar.row(v).transpose()).norm() < c.far) {
+            c.near = one.near;
+            anchorNear.row(v) = p.transpose();
+          } else {
+            project(p, restDepth[v], muscles.data(), static_cast<int>(muscles.size()), &c);
+            anchorNear.row(v) = anchorFar.row(v) = p.transpose();
+          }
+        } else {
+          project(p, restDepth[v], muscles.data(), static_cast<int>(muscles.size()), &c);
+          anchorNear.row(v) = anchorFar.row(v) = p.transpose();
         }
         next.row(v) = p.transpose();
       }
@@ -247,7 +286,7 @@ void SkinSolver::Impl::solveRegion(int r) {
 }
 
 void SkinSolver::Impl::run() {
-  clearance.setConstant(-1.0);
+  std::fill(clearance.begin(), clearance.end(), Clearance());
   tbb::parallel_for(0, static_cast<int>(regionVertices.size()), [&](int r) { solveRegion(r); });
   // Every vertex against every muscle (goal-weight-1 skin, and sliding skin near muscles of other regions).
   Points& result = buffer[options.iterations % 2];
@@ -435,8 +474,9 @@ SkinSolver::SkinSolver(const Mesh& skin, const MuscleRig& rig, const Eigen::Vect
   s.buffer[0] = skin.vertices;
   s.buffer[1] = skin.vertices;
   s.goal = skin.vertices;
-  s.anchor = skin.vertices;
-  s.clearance = Eigen::VectorXd::Constant(s.nv, -1.0);
+  s.anchorNear = skin.vertices;
+  s.anchorFar = skin.vertices;
+  s.clearance.assign(s.nv, Impl::Clearance());
 }
 
 SkinSolver::~SkinSolver() = default;
