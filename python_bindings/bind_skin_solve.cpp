@@ -56,7 +56,7 @@ void bindSkinSolve(py::module_& m) {
                            "solve(goal, rig) per frame.")
       .def(py::init([](const Character& c, PyMuscleRig& rig, const Eigen::VectorXd& goalWeights, int iterations,
                        double slide, double springStiffness, double pushMargin, double reach, int collisionRounds,
-                       int grainSize, int threads) {
+                       int collideEvery, int grainSize, int threads) {
              SkinSolveOptions o;
              o.iterations = iterations;
              o.slide = slide;
@@ -64,6 +64,7 @@ void bindSkinSolve(py::module_& m) {
              o.pushMargin = pushMargin;
              o.reach = reach;
              o.collisionRounds = collisionRounds;
+             o.collideEvery = collideEvery;
              o.grainSize = grainSize;
              o.threads = threads;
              auto p = std::make_unique<PySkinSolver>();
@@ -76,6 +77,7 @@ void bindSkinSolve(py::module_& m) {
            py::arg("spring_stiffness") = SkinSolveOptions{}.springStiffness,
            py::arg("push_margin") = SkinSolveOptions{}.pushMargin, py::arg("reach") = SkinSolveOptions{}.reach,
            py::arg("collision_rounds") = SkinSolveOptions{}.collisionRounds,
+           py::arg("collide_every") = SkinSolveOptions{}.collideEvery,
            py::arg("grain_size") = SkinSolveOptions{}.grainSize, py::arg("threads") = SkinSolveOptions{}.threads,
            "goal_weights: #V in [0, 1] (default_goal_weights). ValueError on a muscle surface that is not closed, "
            "weights of the wrong size or out of range, bad options.")

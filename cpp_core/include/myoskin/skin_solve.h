@@ -48,7 +48,9 @@ namespace myoskin {
 // ============================================================================
 
 struct SkinSolveOptions {
-  int iterations = 12;  // fixed budget per frame: relaxation sweeps (Jacobi), each followed by collision
+  int iterations = 10;  // fixed budget per frame: relaxation sweeps (Jacobi)
+  // Collision after every collideEvery-th sweep and always after the last (1 = after each; 2 halves the queries).
+  int collideEvery = 2;
   // Default goal weight from the skin weights: g = 1 - slide * min(1, share / fullShare), share = the muscle
   // joints' part of the vertex's weight, so skin over a muscle's belly slides most and skin the bones alone move
   // keeps the skinned pose (g = 1). The goal weight blends each iteration: x <- g x_goal + (1 - g) x_spring.

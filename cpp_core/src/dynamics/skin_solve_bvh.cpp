@@ -54,6 +54,19 @@ Vec3 closestOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& 
   return a + ab * v + ac * w;
 }
 
+// atan2(y, x) for y >= 0 (an angle in [0, pi]) by a minimax polynomial, error under 1e-5 rad: the corner angles
+// of the vertex pseudo-normals, a quarter of the cost of std::atan2.
+double cornerAngle(double y, double x) {
+  const double ax = std::abs(x);
+  const bool swap = y > ax;
+  const double t = swap ? (y > 0 ? ax / y : 0.0) : (ax > 0 ? y / ax : 0.0);
+  const double t2 = t * t;
+  double a = t * (0.99997726 + t2 * (-0.33262347 + t2 * (0.19354346 + t2 * (-0.11643287 + t2 * (0.05265332 +
+                                                                                             t2 * -0.01172120)))));
+  if (swap) a = 1.5707963267948966 - a;
+  return x < 0 ? 3.141592653589793 - a : a;
+}
+
 double boxDistance2(const Eigen::AlignedBox3d& box, const Vec3& p) {
   return (p - p.cwiseMax(box.min()).cwiseMin(box.max())).squaredNorm();
 }
@@ -131,7 +144,7 @@ void TriangleBvh::refit(const Points& vertices) {
     faceNormal_[f] = len > 0 ? Vec3(n / len) : Vec3::Zero();
     for (int k = 0; k < 3; ++k) {  // angle at corner k
       const Vec3 e1 = p[(k + 1) % 3] - p[k], e2 = p[(k + 2) % 3] - p[k];
-      const double angle = std::atan2(e1.cross(e2).norm(), e1.dot(e2));
+      const double angle = cornerAngle(e1.cross(e2).norm(), e1.dot(e2));
       vertexNormal_[i[k]] += angle * faceNormal_[f];
     }
   }
