@@ -177,6 +177,11 @@ TEST(SkinSolve, RestPoseReturnsTheSkinExactly) {
                 solver.report().insideAtRest, 1e3 * solver.report().maxRestDepth, solver.report().regions,
                 solver.report().slidingVertices);
     EXPECT_LE(err, 1e-6 * s->size);
+    // A float64 goal at rest: only the springs' rounding.
+    solver.solve(s->character.mesh.vertices, state, out);
+    const double err64 = (out - s->character.mesh.vertices).cwiseAbs().maxCoeff();
+    std::printf("  from the float64 rest skin: %.2e of the size\n", err64 / s->size);
+    EXPECT_LE(err64, 1e-12 * s->size);
   }
 }
 

@@ -29,6 +29,12 @@
 // with goal weight 1 keep the goal unless they went into a muscle, then they are pushed out as above (a last pass
 // over the whole skin), so the no-penetration guarantee holds everywhere.
 //
+// Bad input: a muscle surface that is not closed, not manifold or oriented inwards is an InputError at build
+// (naming the muscle); so are goal weights of the wrong size, NaN or outside [0, 1]. Per frame a NaN or wrongly
+// sized goal, a state without surfaces or with a NaN vertex is an InputError (a NaN pose is refused by
+// MuscleRig::evaluate before); the solver stays usable. Muscles that intersect each other at rest are not an
+// error: they collide as a union (report().overlappingMuscles lists them).
+//
 // Thresholds are relative: the skin's mean edge length and each muscle's mean section radius.
 #pragma once
 #include <memory>
