@@ -103,6 +103,7 @@ struct SkinSolver::Impl {
   struct Clearance {
     int nearest = -1;
     double near = 0.0, far = 0.0;
+    int face = -1;  // the nearest muscle's triangle closest to the point (a hint for the next query)
   };
   SkinSolveOptions options;
   SkinSolveReport report;
@@ -151,11 +152,13 @@ bool SkinSolver::Impl::project(Vec3& p, double allowed, const int* list, int cou
     bool any = false;
     Clearance c;
     c.near = c.far = std::numeric_limits<double>::infinity();
-    auto bound = [&](int m, double d) {  // keep the smallest and the second smallest bound
+    const int hintMuscle = clearOut ? clearOut->nearest : -1, hintFace = clearOut ? clearOut->face : -1;
+    auto bound = [&](int m, double d, int face) {  // keep the smallest and the second smallest bound
       if (d < c.near) {
         c.far = c.near;
         c.near = d;
         c.nearest = m;
+        c.face = face;
       } else {
         c.far = std::min(c.far, d);
       }
@@ -164,12 +167,12 @@ bool SkinSolver::Impl::project(Vec3& p, double allowed, const int* list, int cou
       const int m = list[i];
       const Eigen::AlignedBox3d& box = bvh[m].bounds();
       if (!box.contains(p)) {  // outside the box: outside the muscle, at least the box's distance away
-        bound(m, (p - p.cwiseMax(box.min()).cwiseMin(box.max())).norm());
+        bound(m, (p - p.cwiseMax(box.min()).cwiseMin(box.max())).norm(), -1);
         continue;
       }
-      const detail::SurfaceHit hit = bvh[m].closest(p);
+      const detail::SurfaceHit hit = bvh[m].closest(p, m == hintMuscle ? hintFace : -1);
       if (-hit.distance <= allowed + tolerance) {
-        bound(m, std::max(hit.distance, 0.0));
+        bound(m, std::max(hit.distance, 0.0), hit.face);
         continue;
       }
       // Move along the way out (the closest point's direction, or its normal on the surface) to the allowed depth.
@@ -184,7 +187,7 @@ bool SkinSolver::Impl::project(Vec3& p, double allowed, const int* list, int cou
            step *= 2.0)
         p = hit.point + out * step;
       any = true;
-      bound(m, 0.0);
+      bound(m, 0.0, hit.face);
     }
     if (clearOut) {
       *clearOut = c;
@@ -272,9 +275,12 @@ void SkinSolver::Impl::solveRegion(int r) {
           // nothing to test
         } else if (farClear) {
           Clearance one;
+          one.nearest = c.nearest;
+          one.face = c.face;
           project(p, restDepth[v], &c.nearest, 1, &one);
           if ((p - anchorFar.row(v).transpose()).norm() < c.far) {
             c.near = one.near;
+            c.face = one.face;
             anchorNear.row(v) = p.transpose();
           } else {
             project(p, restDepth[v], muscles.data(), static_cast<int>(muscles.size()), &c);

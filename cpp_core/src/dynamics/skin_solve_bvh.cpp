@@ -166,10 +166,16 @@ void TriangleBvh::refit(const Points& vertices) {
 // Query
 // ============================================================================
 
-SurfaceHit TriangleBvh::closest(const Vec3& p) const {
+SurfaceHit TriangleBvh::closest(const Vec3& p, int hint) const {
   double best = std::numeric_limits<double>::infinity();
   int bestFace = -1, bestFeature = 6;
   Vec3 bestPoint = Vec3::Zero();
+  if (hint >= 0 && hint < tri_.rows()) {
+    bestPoint = closestOnTriangle(p, v_.row(tri_(hint, 0)).transpose(), v_.row(tri_(hint, 1)).transpose(),
+                                  v_.row(tri_(hint, 2)).transpose(), bestFeature);
+    best = (bestPoint - p).squaredNorm();
+    bestFace = hint;
+  }
   int stack[kMaxStack];
   int top = 0;
   stack[top++] = 0;
@@ -221,6 +227,7 @@ SurfaceHit TriangleBvh::closest(const Vec3& p) const {
   const double nn = normal.norm();
   hit.normal = nn > 0 ? Vec3(normal / nn) : Vec3::Zero();
   hit.point = bestPoint;
+  hit.face = bestFace;
   const double d = std::sqrt(best);
   const bool in = selfCrossing_ ? inside(p) : (p - bestPoint).dot(hit.normal) < 0.0;
   hit.distance = in ? -d : d;

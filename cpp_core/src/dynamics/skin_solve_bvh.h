@@ -16,6 +16,7 @@ struct SurfaceHit {
   Vec3 point = Vec3::Zero();   // closest point on the surface
   Vec3 normal = Vec3::Zero();  // pseudo-normal of the closest feature (unit, outward)
   double distance = 0.0;       // signed: negative inside
+  int face = -1;               // the triangle the closest point lies on
 };
 
 class TriangleBvh {
@@ -25,8 +26,10 @@ class TriangleBvh {
   void build(const Points& vertices, const Triangles& triangles);
   // New vertex positions, same count: boxes, face, edge and vertex pseudo-normals. No allocation.
   void refit(const Points& vertices);
-  // Closest surface point to p (any distance), signed by inside(p). No allocation.
-  SurfaceHit closest(const Vec3& p) const;
+  // Closest surface point to p (any distance), signed (pseudo-normal, or ray parity when self-crossing). hint: a
+  // triangle likely near p (e.g. the last answer for a point that moved a little), tried first to prune the
+  // search; the answer does not depend on it. No allocation.
+  SurfaceHit closest(const Vec3& p, int hint = -1) const;
   // Whether p lies inside: an odd number of crossings along at least two of three rays. No allocation.
   bool inside(const Vec3& p) const;
   // Sign closest() by ray parity instead of the pseudo-normal.
