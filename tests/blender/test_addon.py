@@ -232,6 +232,7 @@ def test_add_synthetic_arm_creates_rig():
     assert not mods[0].use_deform_preserve_volume and not mods[0].use_bone_envelopes and mods[0].use_vertex_groups
     for bone in arm_obj.data.bones:
         assert bone.use_deform and bone.bbone_segments == 1 and not bone.use_envelope_multiply
+    assert len(character.bone_parents) == len(character.bone_names) > 0
     for i, p in enumerate(character.bone_parents):
         parent = arm_obj.data.bones[i].parent
         assert (parent.name if parent else None) == (character.bone_names[p] if p >= 0 else None)
@@ -250,6 +251,7 @@ def test_rest_pose_reproduces_core_vertices():
 def test_bone_rest_matrices_match_core():
     arm_obj, _mesh_obj, character = add_arm()
     rest = np.asarray(character.bone_rest)
+    assert len(character.bone_names) == len(rest) > 0
     for i, name in enumerate(character.bone_names):
         bone = arm_obj.data.bones[name]
         actual = np.array([list(r) for r in bone.matrix_local])

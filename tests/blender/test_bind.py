@@ -259,6 +259,7 @@ def test_muscle_surfaces_follow_the_pose():
     pose = live.evaluated_pose(arm, rig, bpy.context.evaluated_depsgraph_get())
     surfaces = rig.rig.evaluate(pose, with_surfaces=True)["surfaces"]
     enabled = [m for m in state.muscles if m.enabled]
+    assert len(enabled) == len(surfaces) > 0
     for item, expected in zip(enabled, surfaces):
         co = np.empty(3 * len(item.surface.data.vertices), dtype=np.float32)
         item.surface.data.vertices.foreach_get("co", co)
@@ -358,6 +359,7 @@ def test_two_bound_characters_in_one_scene():
     bpy.context.view_layer.update()
     for arm, skin in ((arm1, skin1), (arm2, skin2)):
         assert np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, arm.myoskin)).max() < 1e-5
+        assert len(arm.myoskin.muscles) > 0
         for item in arm.myoskin.muscles:
             assert item.surface.parent == arm and item.surface.name in arm.myoskin.collection.objects
 
@@ -441,6 +443,7 @@ def test_baked_action_moves_the_muscle_surfaces_too():
         pose = live.evaluated_pose(arm, rig, bpy.context.evaluated_depsgraph_get())
         expected = rig.rig.evaluate(pose, with_surfaces=True)["surfaces"]
         got = surfaces_now()
+        assert len(enabled) == len(got) == len(expected) > 0
         for item, g, e in zip(enabled, got, expected):
             assert np.abs(g - e).max() < 1e-5, (frame, item.name)
         seen.append(got)

@@ -91,6 +91,7 @@ def split_mesh(mesh, parts):
     strongest = np.array([names.index(max(r, key=lambda gw: gw[1])[0]) for r in rows])
     arm, basis = mesh.parent, mesh.matrix_basis.copy()
     out = []
+    assert parts
     for k, bones in enumerate(parts):
         keep = np.array([names[strongest[t[0]]] in bones for t in tris])
         assert keep.any(), f"part {k} ({bones}) has no faces"
@@ -303,6 +304,7 @@ def test_extract_bind_unbind_a_character_in_three_meshes():
         assert err < 1e-5 * size, f"{p}: PC2 differs from Blender by {err:.3g}"
     # Unbind: every mesh gets its weights back exactly
     assert bpy.ops.myoskin.unbind() == {'FINISHED'}
+    assert len(originals) == len(meshes) == 3
     for m, before in zip(meshes, originals):
         assert weights_of(m) == before, m.name
         assert "myoskin_original_weights" not in m

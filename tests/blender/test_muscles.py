@@ -301,6 +301,7 @@ def test_moving_a_locator_updates_the_muscle():
     assert np.abs(surface - before_surface).max() > 0.01
     # the pole vertex of the insertion cap is the insertion
     assert np.linalg.norm(surface - np.array(item.insertion_locator.location), axis=1).min() < 1e-6
+    assert others
     for m2, co in zip(list(state.muscles)[1:], others):
         assert np.array_equal(mesh_co(m2.surface), co)  # the other muscles did not change
     stored = json.loads(state.muscles_text.as_string())["muscles"][0]

@@ -61,6 +61,7 @@ def test_rest_pose_gives_bind_matrices_and_rest_surfaces(core, arm_rig):
     assert out["joint_matrices"].shape == (rig.num_joints, 4, 4)
     np.testing.assert_allclose(out["joint_matrices"], bind, rtol=0, atol=1e-9)
     np.testing.assert_allclose(out["stretch"], 1.0, atol=1e-12)
+    assert len(out["surfaces"]) == len(muscles) > 0
     for i, s in enumerate(out["surfaces"]):
         np.testing.assert_allclose(s, rig.rest_surface(i)[0], atol=1e-12)
     # Bind matrices are rigid, joints are parented to their muscle's origin bone.
