@@ -145,7 +145,8 @@ def test_cli_extract_makehuman(tmp_path):
     out = tmp_path / "mh.json"
     r = run_cli("extract", shared(MUSCULAR), "-o", str(out), "--no-surfaces")
     assert r.returncode == 0, r.stderr
-    assert len(json.loads(out.read_text())["muscles"]) > 0
+    # the C++ tier's floor on this body (test_extraction MakeHumanMuscularVersusNeutral; measured 20-22)
+    assert len(json.loads(out.read_text())["muscles"]) >= 12
 
 
 def test_continuous_floor_keeps_the_quadriceps(core):
