@@ -463,8 +463,9 @@ def test_extracted_muscles_become_meshes_on_their_bones():
     from_blender = blender_io.character_from_blender(mesh_obj, arm_obj)
     muscles, report = core().extract_muscles(from_blender)
     direct, _ = core().extract_muscles(character)
-    assert len(muscles) == len(direct) >= 3, (len(muscles), len(direct))
-    assert core().measure_extraction(muscles, truth)["matched"] >= 3
+    # the core tiers' figure on seeds 0-3 (test_extraction): all six true muscles matched, nothing else
+    assert len(muscles) == len(direct) == 6, (len(muscles), len(direct))
+    assert core().measure_extraction(muscles, truth)["matched"] == 6
     objects = blender_io.muscles_to_meshes(muscles, armature_obj=arm_obj)
     assert len(objects) == len(muscles)
     for obj, m in zip(objects, muscles):
