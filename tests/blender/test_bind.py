@@ -184,6 +184,8 @@ def test_biceps_bulges_on_flexion():
     outward = np.einsum("ij,ij->i", bound - lbs, normals)[belly]
     print(f"  bulge over the belly of {muscle.name} (stretch {stretch[shortened]:.3f}): "
           f"max {outward.max() * 1000:.2f} mm, median {np.median(outward) * 1000:.2f} mm")
+    # guards the bulge itself (a rig that only followed the skeleton gives 0 here); measured on blender 3.4: 14.5 mm
+    # max, 9.3 mm median at stretch 0.68
     assert outward.max() > 0.002 and np.median(outward) > 0.0005
 
 
@@ -750,6 +752,7 @@ def test_makehuman_end_to_end():
     stretch, outward, sign = best
     print(f"  MakeHuman {item.name}: stretch {stretch:.3f} on flexion, belly bulge max "
           f"{outward.max() * 1000:.2f} mm, median {np.median(outward) * 1000:.2f} mm")
+    # the biceps shortens and lifts its belly (measured on blender 3.4: stretch 0.841, 4.38 mm max, 3.11 mm median)
     assert stretch < 0.97 and outward.max() > 0.002 and np.median(outward) > 0.0
     # save / reload: identical coordinates
     arm.pose.bones["lowerarm01.L"].rotation_euler = (sign * np.radians(80.0), 0.0, 0.0)
