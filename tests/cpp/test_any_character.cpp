@@ -203,6 +203,7 @@ TEST(AnyCharacter, MusclesOnEveryLimbWithBlenderDefaultNames) {
   const ExtractionResult r = extractMuscles(plain);
   // Which original limb bone each muscle sits on: both arms and both legs have muscles.
   std::set<std::string> limbs;
+  ASSERT_FALSE(r.muscles.empty());
   for (const Muscle& m : r.muscles) {
     const int bone = plain.skeleton.find(m.origin.bone);
     ASSERT_GE(bone, 0) << m.origin.bone;

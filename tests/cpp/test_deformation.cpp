@@ -550,6 +550,8 @@ TEST(MuscleRig, DegeneratePosesStayFinite) {
   p.matrices[fa].topRightCorner<3, 1>() += mu.origin.position - mu.insertion.position;
   p.matrices[arm().find("hand")].topRightCorner<3, 1>() += mu.origin.position - mu.insertion.position;
   rig.evaluate(p, st, true);
+  ASSERT_EQ(st.jointMatrices.size(), 12u);  // six joints per muscle
+  ASSERT_EQ(st.surfaces.size(), 2u);
   for (const Mat4& J : st.jointMatrices) EXPECT_TRUE(J.allFinite());
   for (const Points& s : st.surfaces) EXPECT_TRUE(s.allFinite());
   Pose q = restPose(arm());

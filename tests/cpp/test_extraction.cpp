@@ -106,7 +106,7 @@ TEST(Linking, ChainsWithGapAndShortChainDropped) {
   EXPECT_EQ(lengths, (std::vector<int>{2, 7, 9}));
   // Every chain keeps one angle: links do not jump between muscles.
   for (const MuscleChain& c : chains)
-    for (const ChainLink& l : c.links)
+    for (const ChainLink& l : c.links)  // hygiene: the three chains have 2, 7 and 9 sections (above)
       EXPECT_NEAR(std::atan2(l.ellipse.center.y(), l.ellipse.center.x()),
                   std::atan2(c.links[0].ellipse.center.y(), c.links[0].ellipse.center.x()), 1e-12);
 }
@@ -220,6 +220,7 @@ TEST(Linking, AlternatingFragmentsOfOneBellyMerge) {
   ASSERT_EQ(merged.size(), 1u);
   EXPECT_EQ(merged[0].realSections, 6);
   int previous = -1;
+  ASSERT_EQ(merged[0].links.size(), 6u);
   for (const ChainLink& l : merged[0].links) {  // one link per plane, in plane order
     EXPECT_GT(s[l.section].plane.order, previous);
     previous = s[l.section].plane.order;
@@ -755,6 +756,8 @@ TEST(Measured, MakeHumanAnatomicalGroups) {
     EXPECT_GE(right[g], 1) << g;
   }
   // The deltoids mirror each other about x = 0 (MakeHuman's mirror plane) within 1 cm (measured: exactly).
+  ASSERT_FALSE(deltoids[0].empty());
+  ASSERT_FALSE(deltoids[1].empty());
   for (const Vec3& p : deltoids[0]) {
     double nearest = INFINITY;
     for (const Vec3& q : deltoids[1]) nearest = std::min(nearest, (p - Vec3(-q.x(), q.y(), q.z())).norm());

@@ -326,11 +326,14 @@ TEST(CutSections, MakeHumanFamiliesAndMirroredLimbs) {
   std::printf("  %d clipped shoulder profiles\n", clipped);
   EXPECT_GE(clipped, 4);
   // Abdomen loops exclude the arms: narrower than the shoulders.
+  int abdomen = 0;
   for (const SectionProfile& s : profiles)
     if (s.ok && s.plane.family == "abdomen") {
+      ++abdomen;
       const double width = s.polygon.col(0).maxCoeff() - s.polygon.col(0).minCoeff();
       EXPECT_LT(std::abs(width), 0.6);
     }
+  EXPECT_GT(abdomen, 0);
   // Trunk planes through the shoulders run into the arms: every run off the trunk's region is a chord, the
   // profile stays counter-clockwise around the spine, and (the body being symmetric) exactly mirror-symmetric
   // with its chords at mirrored samples. Measured: 7 chest planes (y 0.49-0.62 m) were skipped before.
