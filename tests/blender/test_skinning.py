@@ -282,7 +282,7 @@ def check_muscle_rig(arm_obj, mesh_obj, character, muscles, poses):
 def test_blender_equals_core_with_the_muscle_rig_on_the_arm():
     arm_obj, mesh_obj, character = synthetic_arm_in_blender()
     muscles, _report = core().extract_muscles(character)
-    assert len(muscles) >= 3
+    assert len(muscles) == 6  # seed 1's six muscles, as the core tiers find them
     check_muscle_rig(arm_obj, mesh_obj, character, muscles, [
         {"forearm": axis_angle((1, 0, 0), 70)},
         {"forearm": axis_angle((1, 0, 0), 140)},
@@ -294,7 +294,7 @@ def test_blender_equals_core_with_the_muscle_rig_on_the_arm():
 def test_blender_equals_core_with_the_muscle_rig_on_makehuman():
     arm_obj, mesh_obj, character = makehuman_in_blender()
     muscles, _report = core().extract_muscles(character)
-    assert len(muscles) >= 5, len(muscles)
+    assert len(muscles) >= 12, len(muscles)  # the core tiers' floor on this body (measured 20)
     names = list(character.bone_names)
     spanned = sorted({m.insertion_bone for m in muscles if m.insertion_bone != m.origin_bone} |
                      {m.origin_bone for m in muscles})
