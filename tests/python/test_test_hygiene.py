@@ -47,6 +47,8 @@ def _collections(iter_node):
     if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in VIEWS
             and not node.args):
         node = node.func.value
+    if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Slice):
+        node = node.value  # energy[1:]: asserting on `energy` (its length) is what guards it
     if isinstance(node, (ast.Name, ast.Attribute, ast.Subscript)) and not _has_call(node):
         return [ast.unparse(node)]
     return []
@@ -80,14 +82,21 @@ def _marked(lines, node):
     return "# hygiene:" in lines[node.lineno - 1]
 
 
+def _non_empty_literal(node):
+    """True for a non-empty list, tuple, set or dict literal, or a sum with one (`[a, b] + list(rest)`)."""
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
+        return _non_empty_literal(node.left) or _non_empty_literal(node.right)
+    if isinstance(node, ast.Dict):
+        return bool(node.keys)
+    return isinstance(node, (ast.List, ast.Tuple, ast.Set)) and bool(node.elts)
+
+
 def _literal_names(scope):
-    """Names bound in `scope`'s own statements to a non-empty list, tuple, set or dict literal."""
+    """Names bound in `scope`'s own statements to a non-empty literal."""
     out = set()
     for stmt in ast.walk(scope):
-        if isinstance(stmt, ast.Assign) and isinstance(stmt.value, (ast.List, ast.Tuple, ast.Set, ast.Dict)):
-            size = len(stmt.value.keys) if isinstance(stmt.value, ast.Dict) else len(stmt.value.elts)
-            if size:
-                out |= {t.id for t in stmt.targets if isinstance(t, ast.Name)}
+        if isinstance(stmt, ast.Assign) and _non_empty_literal(stmt.value):
+            out |= {t.id for t in stmt.targets if isinstance(t, ast.Name)}
     return out
 
 
@@ -303,6 +312,7 @@ def test_rows(core):
 
 LITERAL = '''
 POSES = [{"forearm": 90}, {"forearm": 140}]
+POINTS = [(0, 0, 0)] + list(more)
 
 def test_poses(rig):
     cases = {"a": 1, "b": 2}
@@ -310,6 +320,10 @@ def test_poses(rig):
         assert value > 0, label
     for pose in POSES:
         assert rig.evaluate(pose)
+    for p in POINTS:
+        assert p
+    energy = rig.trace()
+    assert len(energy) >= 2 and all(b <= a for a, b in zip(energy, energy[1:]))
 '''
 
 EMPTY_LITERAL = '''
