@@ -46,6 +46,8 @@ def parse_args(argv):
                    help="bone role overrides for extract, {\"bone\": \"role\"} (roles: ignore, limb, shoulder, neck, "
                         "spine, pelvis; the CLI's format); they replace the overrides stored in the file")
     p.add_argument("--bind", action="store_true", help="bind the muscles to the armature")
+    p.add_argument("--deformer", choices=("joints", "anchored"), default=None,
+                   help="with --bind: muscle joints (Equation 3, the default) or the anchored skin")
     p.add_argument("--max-influences", type=int, default=0, metavar="N",
                    help="bones and muscle joints per vertex after --bind (default: the rig's setting, 8; 4 for game engines)")
     p.add_argument("--bake", metavar="A-B", help="bake the muscle joints to keyframes over frames A-B")
@@ -254,6 +256,8 @@ def main(argv):
         if not len(state.muscles):
             log(f"found no muscles: {done.get('diagnosis') or 'no significant relief'}")
     if args.bind:
+        if args.deformer:
+            state.deformer = args.deformer.upper()
         if args.max_influences:
             if not 1 <= args.max_influences <= 16:
                 fail(f"--max-influences must be in 1..16, got {args.max_influences}")

@@ -10,7 +10,7 @@ import json
 import bpy
 import numpy as np
 
-from . import blender_io, core_loader, muscle_io, rig_io, runtime
+from . import blender_io, core_loader, core_skin, muscle_io, rig_io, runtime
 from .state import rig_skins, rig_state, set_rig_skins
 
 # ------------------------------------------------------------------------------------------------
@@ -170,6 +170,10 @@ def bind(context, skins, arm):
         else:
             preserve_volume_before[skin.name] = bool(mod.use_deform_preserve_volume)
         mod.use_deform_preserve_volume = state.preserve_volume
+    core_skin_was = {}
+    if state.deformer == 'ANCHORED':  # the core moves these meshes (live.py); their Armature modifiers rest
+        for skin in skins:
+            core_skin_was[skin.name] = core_skin.attach(skin, armature_modifier(skin, arm))
     surfaces = {m.name: item.surface.name for item in rig_state(arm).muscles
                 for m in muscles if m.name == item.name and item.surface is not None}
     record = {
@@ -182,6 +186,7 @@ def bind(context, skins, arm):
         "bone_rest": np.asarray(character.bone_rest).tolist(),
         "joint_names": list(rig.joint_names), "muscles": core.muscles_to_json(muscles),
         "surfaces": [surfaces.get(m.name, "") for m in muscles],
+        "deformer": "anchored" if state.deformer == 'ANCHORED' else "joints", "core_skin_was": core_skin_was,
     }
     write_bind_record(arm, record)
     set_rig_skins(arm, skins)
@@ -265,6 +270,12 @@ def unbind(arm):
     added = added if isinstance(added, list) else []
     before = record.get("preserve_volume_before", {})
     before = before if isinstance(before, dict) else {}
+    was = record.get("core_skin_was")
+    was = was if isinstance(was, dict) else {}
+    for skin in skins:
+        if core_skin.modifier(skin) is not None or skin.name in was:
+            entry = was.get(skin.name)
+            core_skin.detach(skin, armature_modifier(skin, arm), entry if isinstance(entry, dict) else {})
     for skin in skins:
         mod = armature_modifier(skin, arm)
         if mod is None:

@@ -180,6 +180,15 @@ class MyoskinRigState(bpy.types.PropertyGroup):
                     "the muscle joints together, so bent joints keep their volume; Bind sets it on the "
                     "character's Armature modifiers (at once when bound) and Bake PC2 computes the same mode "
                     "in the core. Off: linear blending, as the paper")
+    deformer: EnumProperty(
+        name="Deformer", default='JOINTS',
+        items=(('JOINTS', "Muscle Joints", "The paper's Equation 3: the muscle joints are deform bones blended with "
+                "the skeleton's weights by the Armature modifier (plays without the add-on once baked)"),
+               ('ANCHORED', "Anchored Skin", "Each skin vertex anchored to the nearest muscle ellipsoid, bone "
+                "capsule or joint sphere (Schneider & Wilhelms; Arabaci), computed by the core every frame and "
+                "shown through a Geometry Nodes modifier; the Armature modifier is switched off while bound. "
+                "Needs the add-on to play; Bake PC2 for farms")),
+        description="How Bind deforms the skin (takes effect at the next Bind)")
     max_influences: IntProperty(name="Max Influences", default=8, min=1, max=16,
                                 description="Bones and muscle joints per skin vertex after Bind (the largest "
                                             "are kept and renormalised; 4 is what game engines take)")

@@ -203,8 +203,13 @@ def bake_skin_frames(context, skins, arm, start, end):
     core = core_loader.core()
     rig = live.live_rig(arm)
     names = rig.bone_names + rig.joint_names
+    anchored = {name: (frame, deformer) for name, frame, deformer in rig.anchored}
     meshes = []
     for skin in skins:
+        if skin.name in anchored:  # the anchored deformer: the core's AnchoredSkin of this mesh, per pose
+            frame, deformer = anchored[skin.name]
+            meshes.append((deformer, frame.to_mesh, np.empty((end - start + 1, len(frame.rest), 3), dtype=np.float32)))
+            continue
         joints, weights = rig_io.read_combined_weights(skin, names)
         to_arm = blender_io.mesh_to_armature_matrix(skin, arm)
         rest = blender_io.mesh_vertices(skin.data) @ to_arm[:3, :3].T + to_arm[:3, 3]
@@ -222,12 +227,13 @@ def bake_skin_frames(context, skins, arm, start, end):
             pose = live.evaluated_pose(arm, rig, context.evaluated_depsgraph_get())
             joint_matrices = rig.rig.evaluate(pose)["joint_matrices"]
             transforms = np.concatenate([pose @ np.linalg.inv(rest_bones), joint_matrices @ bind_inv])
-            for skinner, to_mesh, out in meshes:
-                posed = skinner.deform(transforms).astype(np.float64)
+            for deformer, to_mesh, out in meshes:
+                posed = (deformer.evaluate(pose) if hasattr(deformer, "evaluate")
+                         else deformer.deform(transforms)).astype(np.float64)
                 out[k] = posed @ to_mesh[:3, :3].T + to_mesh[:3, 3]
     finally:
         scene.frame_set(current)
-    return [out for _skinner, _to_mesh, out in meshes]
+    return [out for _deformer, _to_mesh, out in meshes]
 
 
 classes = (MYOSKIN_OT_bind, MYOSKIN_OT_unbind, MYOSKIN_OT_bake_action, MYOSKIN_OT_export_gltf,

@@ -213,6 +213,7 @@ class MYOSKIN_PT_bind(_WorkflowStep, bpy.types.Panel):
         row = layout.row(align=True)
         row.operator("myoskin.bind", icon='LINKED')
         row.operator("myoskin.unbind", icon='UNLINKED')
+        layout.prop(state, "deformer")
         layout.prop(state, "max_influences")
         layout.prop(state, "preserve_volume")
         if state.bound:
