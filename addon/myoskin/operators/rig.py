@@ -96,6 +96,12 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
 
     frame_start: IntProperty(name="Start", default=1)
     frame_end: IntProperty(name="End", default=120)
+    jiggle: BoolProperty(name="Jiggle", default=False,
+                         description="Simulate the muscles' jiggle from the start frame (the rig's Jiggle settings)")
+    jiggle_start: IntProperty(name="Simulation Start", default=-1000000,
+                              description="Jiggle: the frame the simulation starts from at rest (below Start: a farm "
+                                          "chunk of a longer bake, keyed from Start but simulated from here, so "
+                                          "chunks agree with one bake; default: Start)")
 
     def run(self, context):
         _skins, arm, state = require_bound(context)
@@ -115,10 +121,20 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
         wm = context.window_manager
         wm.progress_begin(self.frame_start, self.frame_end)
         current = scene.frame_current
+        rig = live.live_rig(arm)
         try:
+            sim_start = self.frame_start if self.jiggle_start == -1000000 else self.jiggle_start
+            if sim_start > self.frame_start:
+                raise ValueError(f"Simulation Start {sim_start} is after Start {self.frame_start}")
+            track = jiggle_track(context, arm, rig, sim_start, self.frame_end) if self.jiggle else None
             for frame in range(self.frame_start, self.frame_end + 1):
+                k = frame - sim_start
                 scene.frame_set(frame)
-                live.update_armature(arm, context.evaluated_depsgraph_get(), force=True)
+                if track is None:
+                    live.update_armature(arm, context.evaluated_depsgraph_get(), force=True)
+                else:  # the jiggled joints, posed against the skeleton pose the track was sampled with
+                    rig_io.write_joint_matrices(arm, rig.joint_names, track[0].joint_matrices(frame),
+                                                parent_matrices=(rig.bone_names, track[1][k]))
                 for n in names:
                     pb = arm.pose.bones[n]
                     pb.rotation_mode = 'QUATERNION'
@@ -129,8 +145,50 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
             wm.progress_end()
         state.live = False  # the baked Action plays now (also without the add-on); Live Update mutes it again
         scene.frame_set(current)
-        return (f"Baked {len(names)} muscle joints over frames {self.frame_start}-{self.frame_end} "
-                f"(live update off: the Action plays; turn it on after editing the animation)")
+        return (f"Baked {len(names)} muscle joints{' with jiggle' if self.jiggle else ''} over frames "
+                f"{self.frame_start}-{self.frame_end} (live update off: the Action plays; turn it on after editing "
+                f"the animation)")
+
+
+def jiggle_params(state, rig, track):
+    """#M by 3 (mass, stiffness, damping) of the rig's muscles: the track's defaults (by muscle size) with each
+    muscle's own Jiggle Frequency / Damping where set; None when no muscle overrides them."""
+    items = {m.name: m for m in state.muscles}
+    params = np.array(track.params, dtype=np.float64)
+    changed = False
+    for i, muscle in enumerate(rig.rig.muscles):
+        item = items.get(muscle.name)
+        if item is None:
+            continue
+        mass, stiffness, damping = params[i]
+        ratio = damping / (2.0 * np.sqrt(stiffness * mass))
+        if item.jiggle_frequency > 0.0:
+            stiffness, changed = mass * (2.0 * np.pi * item.jiggle_frequency) ** 2, True
+        if item.jiggle_damping >= 0.0:
+            ratio, changed = item.jiggle_damping, True
+        params[i] = (mass, stiffness, 2.0 * ratio * np.sqrt(stiffness * mass))
+    return params if changed else None
+
+
+def jiggle_track(context, arm, rig, start, end):
+    """(core JiggleTrack over frames start..end, #F by #B by 4 by 4 skeleton poses it was sampled from): the
+    evaluated skeleton of every frame (IK and constraints included) at the scene's frame rate, with the rig's
+    Jiggle settings. Deterministic: the same frames give the same track, so separate bakes of a range agree."""
+    scene, state = context.scene, rig_state(arm)
+    poses = []
+    for frame in range(start, end + 1):
+        scene.frame_set(frame)
+        poses.append(live.evaluated_pose(arm, rig, context.evaluated_depsgraph_get()))
+    poses = np.ascontiguousarray(poses, dtype=np.float64)
+    fps = scene.render.fps / scene.render.fps_base
+    settings = dict(frequency=state.jiggle_frequency, damping_ratio=state.jiggle_damping,
+                    amount=state.jiggle_amount)
+    core = core_loader.core()
+    track = core.JiggleTrack(rig.character, rig.rig, poses, fps, float(start), **settings)
+    params = jiggle_params(state, rig, track)
+    if params is not None:
+        track = core.JiggleTrack(rig.character, rig.rig, poses, fps, float(start), params=params, **settings)
+    return track, poses
 
 
 class MYOSKIN_OT_export_gltf(_MuscleOperator, bpy.types.Operator):

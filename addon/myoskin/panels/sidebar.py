@@ -235,8 +235,21 @@ class MYOSKIN_PT_bake(_WorkflowStep, bpy.types.Panel):
         row = layout.row(align=True)
         row.prop(ui, "frame_start")
         row.prop(ui, "frame_end")
+        col = layout.column(align=True)
+        col.prop(state, "jiggle")
+        if state.jiggle:
+            row = col.row(align=True)
+            row.prop(state, "jiggle_frequency")
+            row.prop(state, "jiggle_damping")
+            col.prop(state, "jiggle_amount")
+            if 0 <= state.active_index < len(state.muscles):
+                item = state.muscles[state.active_index]
+                row = col.row(align=True)
+                row.label(text=item.name)
+                row.prop(item, "jiggle_frequency", text="Hz")
+                row.prop(item, "jiggle_damping", text="Damping")
         op = layout.operator("myoskin.bake_action", icon='ACTION')
-        op.frame_start, op.frame_end = ui.frame_start, ui.frame_end
+        op.frame_start, op.frame_end, op.jiggle = ui.frame_start, ui.frame_end, state.jiggle
         layout.prop(ui, "export_path")
         layout.operator("myoskin.export_gltf", icon='EXPORT').filepath = ui.export_path
         layout.prop(ui, "pc2_path")
