@@ -235,6 +235,10 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
     frame_start: IntProperty(name="Start", default=1)
     frame_end: IntProperty(name="End", default=120)
     add_modifier: BoolProperty(name="Add Mesh Cache Modifier", default=False)
+    mute_armature: BoolProperty(name="Mute Armature Modifier", default=True,
+                                description="With Add Mesh Cache Modifier: switch the mesh's Armature modifier off "
+                                            "(the cache replaces its result, so it would only cost time); Unbind "
+                                            "switches it back on and removes the cache modifiers")
 
     def run(self, context):
         skins, arm, state = require_bound(context)
@@ -247,8 +251,10 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
         for skin, mesh_path, mesh_frames in zip(skins, paths, frames):
             core_loader.core().write_pc2(mesh_path, mesh_frames, float(self.frame_start), 1.0)
             if self.add_modifier:
-                mod = skin.modifiers.new("Myoskin PC2", 'MESH_CACHE')
+                mod = skin.modifiers.new(binding.PC2_MODIFIER, 'MESH_CACHE')
                 mod.cache_format, mod.filepath = 'PC2', mesh_path
+                if self.mute_armature:
+                    binding.mute_armature_for_cache(skin, arm)
         count = self.frame_end - self.frame_start + 1
         if len(skins) == 1:
             return f"Baked {count} frames of {skins[0].name} to {path}"
