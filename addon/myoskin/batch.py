@@ -57,6 +57,8 @@ def parse_args(argv):
                    help="with --jiggle: the frame the simulation starts from (a farm chunk --bake A-B of a longer "
                         "bake from F: keyed over A-B, simulated from F, so chunks join exactly)")
     p.add_argument("--pc2", metavar="FILE", help="bake the skin to a PC2 cache (needs --bind and --bake)")
+    p.add_argument("--skin-solve", action="store_true",
+                   help="with --pc2: solve the skin against the posed muscles every frame (it slides over them)")
     p.add_argument("--gltf", metavar="FILE", help="export skin + armature + helper bones to glTF")
     p.add_argument("-o", "--output", metavar="FILE.blend", help="save the result")
     return p.parse_args(argv)
@@ -283,7 +285,7 @@ def main(argv):
         if not frames:
             fail("--pc2 needs --bake A-B for its frame range")
         run_op(bpy.ops.myoskin.bake_pc2, filepath=os.path.abspath(args.pc2), frame_start=frames[0],
-               frame_end=frames[1])
+               frame_end=frames[1], skin_solve=args.skin_solve)
         written = addon("operators.rig").pc2_paths(os.path.abspath(args.pc2), addon("binding").bound_skins(arm))
         log(f"wrote {', '.join(written)}")
     if args.gltf:

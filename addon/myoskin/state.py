@@ -198,6 +198,9 @@ class MyoskinRigState(bpy.types.PropertyGroup):
     jiggle: BoolProperty(name="Jiggle", default=False,
                          description="Bake Muscle Action simulates jiggle: each muscle's mass on a damped spring "
                                      "behind its bones (Gray & Hutchinson), baked into the muscle joints' keys")
+    skin_solve: BoolProperty(name="Skin Solve", default=False,
+                             description="Bake PC2 relaxes the skin every frame and pushes it out of the posed muscles "
+                                         "so it slides over them (Gray & Hutchinson's skin solve)")
     jiggle_frequency: FloatProperty(name="Frequency", default=5.0, min=0.05, soft_max=20.0,
                                     description="Natural frequency in Hz of a muscle of the median size (smaller "
                                                 "muscles are stiffer)")

@@ -101,6 +101,35 @@ def test_muscle_frequency_override_changes_the_swing():
     assert np.abs(slow - default).max() > 1e-5
 
 
+def test_pc2_with_skin_solve_is_the_core_solve_and_rest_is_exact():
+    arm, skin = animated_arm()
+    tmp = os.path.join(os.environ.get("TMPDIR", "/tmp"), f"myoskin_dyn_{os.getpid()}")
+    os.makedirs(tmp, exist_ok=True)
+    plain_path, solved_path = os.path.join(tmp, "plain.pc2"), os.path.join(tmp, "solved.pc2")
+    assert bpy.ops.myoskin.bake_pc2(filepath=plain_path, frame_start=1, frame_end=STOP) == {'FINISHED'}
+    assert bpy.ops.myoskin.bake_pc2(filepath=solved_path, frame_start=1, frame_end=STOP, skin_solve=True) == {'FINISHED'}
+    core = module("core_loader").core()
+    plain, solved = core.read_pc2(plain_path)["frames"], core.read_pc2(solved_path)["frames"]
+    rest = module("blender_io").mesh_vertices(skin.data)
+    size = float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0)))
+    assert np.abs(solved[0] - rest).max() <= 1e-6 * size, "at rest the solve returns the skin"
+    moved = np.abs(solved[-1] - plain[-1]).max()
+    print(f"skin solve at 100 deg: moves the skin up to {moved / size:.2e} of the size from the plain skin")
+    assert 0.0 < moved < 0.1 * size
+    # The same frame solved by the core directly (the bake's inputs: the mesh's combined weights).
+    rig_op, live, rig_io = module("operators.rig"), module("live"), module("rig_io")
+    rig = live.live_rig(arm)
+    joints, weights = rig_io.read_combined_weights(skin, rig.bone_names + rig.joint_names)
+    solver = core.SkinSolver(module("blender_io").character_from_blender(skin, arm), rig.rig,
+                             core.default_goal_weights(joints, weights, len(rig.bone_names)))
+    bpy.context.scene.frame_set(STOP)
+    pose = live.evaluated_pose(arm, rig, bpy.context.evaluated_depsgraph_get())
+    goal = np.asarray(plain[-1], dtype=np.float64)  # the skinned frame (mesh space = armature space here)
+    want = np.asarray(solver.solve(goal, rig.rig, pose))
+    assert np.abs(want - solved[-1]).max() <= 1e-5 * size
+    assert rig_op.SolvedSkin is not None
+
+
 def test_bad_ranges_are_refused():
     animated_arm()
     msg = operator_error(bpy.ops.myoskin.bake_action, frame_start=10, frame_end=20, jiggle=True, jiggle_start=15)

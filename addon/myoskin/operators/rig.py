@@ -235,6 +235,10 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
     frame_start: IntProperty(name="Start", default=1)
     frame_end: IntProperty(name="End", default=120)
     add_modifier: BoolProperty(name="Add Mesh Cache Modifier", default=False)
+    skin_solve: BoolProperty(name="Skin Solve", default=False,
+                             description="Per frame, relax the skinned skin with edge springs toward a per-vertex goal "
+                                         "and push it out of the posed muscles, so it slides over them (Gray & "
+                                         "Hutchinson; muscle-joint skins only)")
     mute_armature: BoolProperty(name="Mute Armature Modifier", default=True,
                                 description="With Add Mesh Cache Modifier: switch the mesh's Armature modifier off "
                                             "(the cache replaces its result, so it would only cost time); Unbind "
@@ -246,7 +250,7 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
             raise ValueError(f"Frame range {self.frame_start}-{self.frame_end} is empty")
         path = bpy.path.abspath(self.filepath)
         paths = pc2_paths(path, skins)
-        frames = bake_skin_frames(context, skins, arm, self.frame_start, self.frame_end)
+        frames = bake_skin_frames(context, skins, arm, self.frame_start, self.frame_end, self.skin_solve)
         os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
         for skin, mesh_path, mesh_frames in zip(skins, paths, frames):
             core_loader.core().write_pc2(mesh_path, mesh_frames, float(self.frame_start), 1.0)
@@ -261,9 +265,21 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
         return f"Baked {count} frames of {len(skins)} meshes to " + ", ".join(paths)
 
 
-def bake_skin_frames(context, skins, arm, start, end):
+class SolvedSkin:
+    """A mesh's skinner followed by the skin solve: the skinned pose is the goal, the posed muscles collide."""
+
+    def __init__(self, skinner, solver, rig):
+        self.skinner, self.solver, self.rig = skinner, solver, rig
+
+    def solve(self, transforms, pose):
+        goal = self.skinner.deform(transforms).astype(np.float64)
+        return np.asarray(self.solver.solve(goal, self.rig, pose), dtype=np.float64)
+
+
+def bake_skin_frames(context, skins, arm, start, end, skin_solve=False):
     """Per mesh of `skins`, #frames by #V by 3 float32 skin positions (mesh object space) from the core's
-    skinner; the skeleton and the rig are evaluated once per frame for all of them."""
+    skinner (or anchored skin), with skin_solve each muscle-joint skin then solved against the posed muscles
+    (SkinSolver); the skeleton and the rig are evaluated once per frame for all of them."""
     core = core_loader.core()
     rig = live.live_rig(arm)
     names = rig.bone_names + rig.joint_names
@@ -280,6 +296,10 @@ def bake_skin_frames(context, skins, arm, start, end):
         # The mode Blender skins this mesh with (its Armature modifier's Preserve Volume), so the PC2 equals
         # Blender's skin; the transforms and rest matrices are in armature space, as the modifier's.
         skinner = binding.skinner_for(skin, arm, rig, rest, joints, weights)
+        if skin_solve:
+            goal_weights = core.default_goal_weights(joints, weights, len(rig.bone_names))
+            skinner = SolvedSkin(skinner, core.SkinSolver(blender_io.character_from_blender(skin, arm), rig.rig,
+                                                          goal_weights), rig.rig)
         meshes.append((skinner, np.linalg.inv(to_arm), np.empty((end - start + 1, len(rest), 3), dtype=np.float32)))
     rest_bones = np.asarray(rig.character.bone_rest)
     bind_inv = np.linalg.inv(np.asarray(rig.rig.bind_matrices))
@@ -292,8 +312,11 @@ def bake_skin_frames(context, skins, arm, start, end):
             joint_matrices = rig.rig.evaluate(pose)["joint_matrices"]
             transforms = np.concatenate([pose @ np.linalg.inv(rest_bones), joint_matrices @ bind_inv])
             for deformer, to_mesh, out in meshes:
-                posed = (deformer.evaluate(pose) if hasattr(deformer, "evaluate")
-                         else deformer.deform(transforms)).astype(np.float64)
+                if isinstance(deformer, SolvedSkin):
+                    posed = deformer.solve(transforms, pose)
+                else:
+                    posed = (deformer.evaluate(pose) if hasattr(deformer, "evaluate")
+                             else deformer.deform(transforms)).astype(np.float64)
                 out[k] = posed @ to_mesh[:3, :3].T + to_mesh[:3, 3]
     finally:
         scene.frame_set(current)
