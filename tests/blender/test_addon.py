@@ -112,6 +112,14 @@ def test_bl_info_and_manifest():
 
 def test_preferences_defaults():
     prefs = bpy.context.preferences.addons[ADDON].preferences
+    # the registered preferences start where the fallback for scripts without the add-on (_Defaults) is, so both
+    # extract and rig alike (this can fail: the two are written separately)
+    fallback = addon_module("preferences")._Defaults
+    names = [n for n in vars(fallback) if not n.startswith("_")]
+    assert len(names) >= 5, names
+    for name in names:
+        assert abs(getattr(prefs, name) - getattr(fallback, name)) < 1e-6, (name, getattr(prefs, name))
+    # the documented values
     assert prefs.section_spacing == 0.0  # automatic, as the core's default
     assert prefs.joints_per_muscle == 4 and abs(prefs.bulge_factor - 1.0) < 1e-9 and prefs.min_sections == 3
     assert addon_module("preferences").get_preferences().joints_per_muscle == 4
