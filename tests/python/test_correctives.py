@@ -102,3 +102,52 @@ def test_bad_input_is_a_value_error(arm):
         _core.CorrectiveDrivers([{"name": "a", "bone": forearm, "direction": [0.0, 1.0, 0.0]}])
     with pytest.raises(ValueError, match="falloff"):
         _core.CorrectiveDrivers([{"name": "a", "bone": forearm, "direction": direction}], falloff=0.0)
+
+
+def test_makehuman_elbow_and_knee_sculpts_reproduced_with_the_muscle_joints_and_preserve_volume():
+    """The reference character: extracted muscles as joints, Preserve Volume (Bind's default), correctives at
+    two elbow poses and one knee pose; each sculpt reproduced, rest exact."""
+    from conftest import MUSCULAR, shared
+    c = _core.load_character(shared(MUSCULAR))
+    muscles, _report = _core.extract_muscles(c)
+    rig = _core.MuscleRig(c, muscles)
+    joints, weights = _core.hybrid_weights(c, rig)
+    joints, weights = np.asarray(joints), np.asarray(weights)
+    rest = np.asarray(c.vertices)
+    size = float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0)))
+    names = list(c.bone_names)
+    elbow, knee = names.index("lowerarm01.L"), names.index("lowerleg01.L")
+    rest_matrices = _core.combined_rest_matrices(c, rig)
+    cases = [("elbow_70", elbow, {"lowerarm01.L": (70, (1, 0, 0))}),
+             ("elbow_120", elbow, {"lowerarm01.L": (120, (1, 0, 0))}),
+             ("knee_100", knee, {"lowerleg01.L": (100, (1, 0, 0))})]
+    poses, offsets, sculpts = [], [], []
+    for name, bone, rotations in cases:
+        pose = pose_of(c, rotations)
+        t = transforms_of(c, rig, pose)
+        q = _core.bone_local_rotations(c, pose)
+        poses.append({"name": name, "bone": bone, "direction": _core.bone_direction(q[bone])})
+        offsets.append(np.zeros_like(rest))
+        w = _core.CorrectiveDrivers(poses, falloff=math.radians(70)).weights(q)
+        base = rest + np.einsum("k,kvj->vj", w, np.asarray(offsets))
+        skinner = _core.Skinner(base, joints, weights, len(t), preserve_volume=True, rest_matrices=rest_matrices)
+        posed = skinner.deform(t).astype(np.float64)
+        head = np.asarray(c.bone_heads)[bone]
+        head_posed = (pose[bone] @ np.linalg.inv(np.asarray(c.bone_rest)[bone]) @ np.append(head, 1.0))[:3]
+        near = np.linalg.norm(posed - head_posed, axis=1) < 0.05 * size
+        assert near.sum() > 20
+        sculpt = posed.copy()
+        sculpt[near] += 0.005 * size * (1.0 - (np.linalg.norm(posed[near] - head_posed, axis=1) / (0.05 * size)) ** 2)[:, None] ** 3
+        sculpts.append(sculpt)
+        offsets[-1] = _core.rest_space_offsets(skinner, t, base, sculpt)
+    drivers = _core.CorrectiveDrivers(poses, falloff=math.radians(70))
+    for (name, _bone, rotations), sculpt in zip(cases, sculpts):
+        pose = pose_of(c, rotations)
+        t = transforms_of(c, rig, pose)
+        w = drivers.weights(_core.bone_local_rotations(c, pose))
+        base = rest + np.einsum("k,kvj->vj", w, np.asarray(offsets))
+        skinner = _core.Skinner(base, joints, weights, len(t), preserve_volume=True, rest_matrices=rest_matrices)
+        err = np.linalg.norm(skinner.deform(t) - sculpt, axis=1).max() / size
+        print(f"makehuman_muscular_male {name}: sculpt reproduced to {err:.2e} of the size, weights {np.round(w, 3)}")
+        assert err < 1e-6, (name, err)
+    assert np.abs(drivers.weights(_core.bone_local_rotations(c, _core.rest_pose(c)))).max() == 0.0
