@@ -311,6 +311,24 @@ def test_gltf_export_carries_the_morph_target_and_its_weights_animation():
     assert elbow.min() == 0.0 and abs(elbow.max() - 1.0) < 1e-5
 
 
+def test_the_panel_lists_the_correctives_and_offers_add_from_the_active_shape_key():
+    from fake_layout import draw_panel
+    arm, skin = new_arm()
+    log = draw_panel(bpy.types.MYOSKIN_PT_correctives).log
+    assert ("label", "No correctives") in log and ("operator", "myoskin.add_corrective") in log
+    set_pose(arm, {"forearm": (100.0, (1.0, 0.0, 0.0))})
+    sculpt, _posed = sculpt_points(skin, arm, "forearm")
+    assert bpy.ops.myoskin.add_corrective(bone="forearm", source_object=sculpted_copy(skin, sculpt).name,
+                                          name="elbow") == {'FINISHED'}
+    skin.shape_key_add(name="next_fix", from_mix=False)
+    skin.active_shape_key_index = len(skin.data.shape_keys.key_blocks) - 1
+    text = " ".join(t for kind, t in draw_panel(bpy.types.MYOSKIN_PT_correctives).log if kind == "label")
+    assert "elbow  (forearm, 60 deg)" in text and "Sculpt: next_fix" in text, text
+    assert ("operator", "myoskin.remove_corrective") in draw_panel(bpy.types.MYOSKIN_PT_correctives).log
+    bpy.context.view_layer.objects.active = arm  # the armature active: its one skin
+    assert "elbow  (forearm, 60 deg)" in draw_panel(bpy.types.MYOSKIN_PT_correctives).text()
+
+
 def test_bad_input_is_reported_not_raised():
     arm, skin = new_arm()
     set_pose(arm, {"forearm": (90.0, (1.0, 0.0, 0.0))})

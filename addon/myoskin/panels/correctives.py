@@ -6,6 +6,7 @@ import math
 import bpy
 
 from .. import core_loader
+from ..blender_io import find_skin_meshes
 from ..correctives import stored
 from .sidebar import MyoskinSidebar, active_rig
 
@@ -18,6 +19,9 @@ class MYOSKIN_PT_correctives(MyoskinSidebar, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         skin, arm = active_rig(context)
+        if skin is None and arm is not None:  # the armature active (Pose Mode) with one skinned mesh
+            meshes = find_skin_meshes(arm)
+            skin = meshes[0] if len(meshes) == 1 else None
         if skin is None or arm is None:
             layout.label(text="Select a skinned mesh")
             return
