@@ -79,6 +79,12 @@ def require_armature_modifier(skin, arm):
                          f"deforms")
     if not mod.show_viewport:
         raise ValueError(f"'{skin.name}'s Armature modifier is off in the viewport: turn it on to sculpt at a pose")
+    for m in skin.modifiers:
+        if m == mod:
+            break
+        if m.show_viewport:
+            raise ValueError(f"'{skin.name}'s modifier '{m.name}' comes before its Armature modifier: correctives need "
+                             f"the shape keys to feed the Armature modifier directly (move it below, or turn it off)")
     if mod.use_bone_envelopes or not mod.use_vertex_groups or mod.vertex_group:
         raise ValueError(f"'{skin.name}'s Armature modifier must deform by vertex groups only (no envelopes, no "
                          f"modifier vertex group) for correctives")
