@@ -307,6 +307,26 @@ TEST(Correctives, BadInputIsRefusedClearly) {
   EXPECT_NE(inputErrorOf([&] { CorrectiveDrivers({{"a", forearm, dir, 0.0}, {"a", 0, dir, 0.0}}); }).find("two"),
             std::string::npos);
   EXPECT_NE(inputErrorOf([&] { boneLocalRotation(sk, pose, sk.numBones()); }).find("bone index"), std::string::npos);
+  // a vertex blended half and half between opposite turns has no inverse; a vertex without weights stays at rest
+  Points two(2, 3);
+  two << 0.3, 0.1, 0.2, 0.5, 0.5, 0.5;
+  SkinWeights half;
+  half.joints.resize(2, 2);
+  half.weights.resize(2, 2);
+  half.joints << 0, 1, 0, -1;
+  half.weights << 0.5, 0.5, 0.0, 0.0;
+  Mat4 turn = Mat4::Identity();
+  turn.block<3, 3>(0, 0) = Eigen::AngleAxisd(M_PI, Vec3::UnitZ()).toRotationMatrix();
+  const Skinner halfSkinner(two, half, 2);
+  EXPECT_NE(inputErrorOf([&] { restSpaceOffsets(halfSkinner, {Mat4::Identity(), turn}, two, two); })
+                .find("vertex 0"),
+            std::string::npos);
+  half.weights(0, 1) = 0.25;  // no longer collapsed; vertex 1 (no weights) moves exactly as sculpted
+  const Skinner uneven(two, half, 2);
+  Points target = two;
+  target(1, 0) += 0.1;
+  const Points d = restSpaceOffsets(uneven, {Mat4::Identity(), turn}, two, target);
+  EXPECT_NEAR(d(1, 0), 0.1, 1e-12);
   const CorrectiveDrivers ok({{"a", forearm, dir, 0.0}});
   Eigen::VectorXd w;
   EXPECT_THROW(ok.weights({Eigen::Quaterniond::Identity()}, w), InputError);

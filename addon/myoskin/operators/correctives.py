@@ -52,7 +52,8 @@ class MYOSKIN_OT_add_corrective(_MuscleOperator, bpy.types.Operator):
                                   "vertices), in place of the shape key")
     skin: StringProperty(name="Skin", description="The skinned mesh (empty: the active object)")
     falloff: FloatProperty(name="Falloff", description="The corrective fades to nothing where the bone's direction "
-                           "is this far from the sculpted pose", default=math.radians(60.0), min=math.radians(1.0),
+                           "is this far from the sculpted pose (at least 10 degrees: below, Blender's float32 bone "
+                           "rotations make the driver inexact)", default=math.radians(60.0), min=math.radians(10.0),
                            max=math.pi, subtype='ANGLE')
 
     def run(self, context):
