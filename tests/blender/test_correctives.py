@@ -385,7 +385,10 @@ def test_bad_input_is_reported_not_raised():
     assert "no corrective 'other'" in err(bpy.ops.myoskin.remove_corrective, name="other")
     # a deforming modifier before the Armature modifier
     smooth = skin.modifiers.new("Smooth", 'SMOOTH')
-    bpy.ops.object.modifier_move_to_index(modifier=smooth.name, index=0)
+    if hasattr(skin.modifiers, "move"):  # Blender 4.x, 5.x
+        skin.modifiers.move(len(skin.modifiers) - 1, 0)
+    else:
+        bpy.ops.object.modifier_move_to_index(modifier=smooth.name, index=0)
     assert skin.modifiers[0] == smooth
     set_pose(arm, {"forearm": (60.0, (1.0, 0.0, 0.0))})
     assert "comes before its Armature modifier" in err(add, bone="forearm", source_object="good", name="third")
