@@ -555,6 +555,28 @@ def test_pc2_bake_equals_blender():
         assert err < 1e-5, f"frame {frame}: PC2 differs from Blender by {err:.3g} m"
 
 
+def test_pc2_modifier_replaces_the_armature_until_unbind():
+    arm, skin, state, original = bound_arm()
+    key_elbow(arm, ((1, 0.0), (3, 90.0)))
+    live_skin = []
+    for frame in (1, 2, 3):
+        bpy.context.scene.frame_set(frame)
+        live_skin.append(module("blender_io").evaluated_vertices(skin))
+    path = os.path.join(TMP, "cached.pc2")
+    assert bpy.ops.myoskin.bake_pc2(filepath=path, frame_start=1, frame_end=3, add_modifier=True) == {'FINISHED'}
+    armature = module("binding").armature_modifier(skin, arm)
+    assert not armature.show_viewport and not armature.show_render
+    assert [m.type for m in skin.modifiers].count('MESH_CACHE') == 1
+    for k, frame in enumerate((1, 2, 3)):
+        bpy.context.scene.frame_set(frame)
+        err = np.abs(module("blender_io").evaluated_vertices(skin) - live_skin[k]).max()
+        assert err < 1e-5, f"frame {frame}: the cache plays {err:.3g} m away from the live skin"
+    assert bpy.ops.myoskin.unbind() == {'FINISHED'}
+    assert armature.show_viewport and armature.show_render
+    assert not any(m.type == 'MESH_CACHE' for m in skin.modifiers)
+    assert weights_of(skin) == original
+
+
 # ------------------------------------------------------------------------------------------------
 # Bad input
 # ------------------------------------------------------------------------------------------------
