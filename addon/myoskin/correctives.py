@@ -20,7 +20,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import binding, blender_io, core_loader, rig_io
+from . import binding, blender_io, core_loader, core_skin, rig_io
 
 STORE_KEY = "myoskin_correctives"
 KERNEL_PREFIX = "myoskin_rbf_"
@@ -73,6 +73,9 @@ def corrective_names(skin):
 
 
 def require_armature_modifier(skin, arm):
+    if core_skin.modifier(skin) is not None:
+        raise ValueError(f"'{skin.name}' is bound with the Anchored Skin deformer (the core moves it, not the Armature "
+                         f"modifier): correctives work with the Muscle Joints deformer or plain skinning")
     mod = binding.armature_modifier(skin, arm)
     if mod is None:
         raise ValueError(f"'{skin.name}' has no Armature modifier of '{arm.name}': correctives drive the skin it "

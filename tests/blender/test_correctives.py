@@ -392,6 +392,10 @@ def test_bad_input_is_reported_not_raised():
     assert skin.modifiers[0] == smooth
     set_pose(arm, {"forearm": (60.0, (1.0, 0.0, 0.0))})
     assert "comes before its Armature modifier" in err(add, bone="forearm", source_object="good", name="third")
+    skin.modifiers.remove(smooth)
+    # a skin the core moves (the Anchored Skin deformer's Geometry Nodes modifier)
+    skin.modifiers.new(module("core_skin").MODIFIER, 'NODES')
+    assert "Anchored Skin" in err(add, bone="forearm", source_object="good", name="third")
     assert good.name in bpy.data.objects
 
 
