@@ -21,6 +21,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "myoskin/anchored_skin.h"
 #include "myoskin/deformation.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
@@ -77,8 +78,10 @@ void usage(std::ostream& out) {
          "          [--max-per-region N] [--min-evidence E] [--no-surfaces] [--mesh NAME] [--roles ROLES.json]\n"
          "          extract muscles from the skin (the whole character: every mesh its skin deforms, or --mesh)\n"
          "  deform CHARACTER [--muscles M.json] --pose P.json -o out.obj|out.pc2 [--dominance D] [--threads N]\n"
-         "          [--preserve-volume [--dq-scale pivot|blended]]\n"
+         "          [--preserve-volume [--dq-scale pivot|blended]] [--method eq3|anchored] [--relax-iterations N]\n"
          "          skin a pose (.obj) or a sequence of poses (.pc2, Blender's Mesh Cache modifier);\n"
+         "          --method anchored anchors the skin to muscle ellipsoids, bone capsules and joint spheres\n"
+         "          (Schneider & Wilhelms 1998) instead of Equation 3 (eq3, the default);\n"
          "          --preserve-volume blends the joints as dual quaternions (Blender's Preserve Volume; scaled\n"
          "          joints as Blender 4.x/5.x do, or --dq-scale blended as Blender 3.x); pose\n"
          "          files: {\"bones\": {name: {\"rotation_quaternion\": [w,x,y,z]}}} or {\"frames\": [...]}\n"
@@ -261,6 +264,33 @@ bool endsWith(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
+// The anchored-skin deformer over every frame of the pose file (--method anchored).
+int deformAnchored(const Args& args, const Character& c, const PoseSequence& poses, const std::string& out, bool pc2) {
+  for (const char* o : {"--dominance", "--dq-scale"})
+    if (args.options.count(o)) throw InputError(std::string("deform: ") + o + " is for --method eq3");
+  if (!args.flags.empty()) throw InputError("deform: '" + args.flags[0] + "' is not an option of --method anchored");
+  const std::vector<Muscle> muscles =
+      args.options.count("--muscles") ? readMusclesJson(args.options.at("--muscles")) : std::vector<Muscle>{};
+  AnchoredSkinOptions ao;
+  ao.relaxIterations = static_cast<int>(numberOption(args, "--relax-iterations", ao.relaxIterations));
+  if (ao.relaxIterations < 0) throw InputError("--relax-iterations must be >= 0");
+  ao.threads = static_cast<int>(numberOption(args, "--threads", 0));
+  if (ao.threads < 0) throw InputError("--threads must be >= 0 (0 = all cores)");
+  const AnchoredComponents comps = deriveComponents(c.skeleton, muscles, c.mesh, c.weights);
+  const AnchoredSkin skin(c.mesh, c.weights, comps, c.skeleton, ao);
+  if (pc2) {
+    writeAnchoredPC2(out, skin, poses.frames, static_cast<float>(poses.startFrame));
+  } else {
+    Points positions;
+    skin.evaluate(poses.frames[0], positions);
+    writeObj(out, positions, c.mesh.triangles);
+  }
+  std::printf("deformed %s (%d vertices, anchored to %d components: %zu muscles, %d seam vertices): %zu frame(s) -> %s\n",
+              c.name.c_str(), c.mesh.numVertices(), skin.numComponents(), muscles.size(), skin.report().seamVertices,
+              poses.frames.size(), out.c_str());
+  return 0;
+}
+
 // Skin every frame of the pose file: .obj takes one pose, .pc2 takes the whole sequence.
 int cmdDeform(const Args& args) {
   if (args.positional.size() != 1) throw InputError("deform needs exactly one CHARACTER file");
@@ -363,7 +393,8 @@ int main(int argc, char** argv) {
                                "--min-evidence", "--mesh", "--roles"}));
     if (command == "deform")
       return cmdDeform(
-          parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh", "--dq-scale"}));
+          parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh", "--dq-scale",
+                                   "--method", "--relax-iterations"}));
     std::fprintf(stderr, "myoskin: error: unknown command '%s' (try myoskin --help)\n", command.c_str());
     return 2;
   } catch (const InputError& e) {

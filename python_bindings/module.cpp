@@ -53,4 +53,5 @@ PYBIND11_MODULE(_core, m) {
   myoskin::python::bindDeformation(m);
   myoskin::python::bindSkinning(m);
   myoskin::python::bindCorrectives(m);
+  myoskin::python::bindAnchored(m);
 }

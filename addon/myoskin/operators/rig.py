@@ -257,6 +257,8 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
             if self.add_modifier:
                 mod = skin.modifiers.new(binding.PC2_MODIFIER, 'MESH_CACHE')
                 mod.cache_format, mod.filepath = 'PC2', mesh_path
+                # Frame time mode reads sample (scene frame - frame_start): sample 0 is frame_start
+                mod.time_mode, mod.play_mode, mod.frame_start = 'FRAME', 'SCENE', float(self.frame_start)
                 if self.mute_armature:
                     binding.mute_armature_for_cache(skin, arm)
         count = self.frame_end - self.frame_start + 1
