@@ -227,6 +227,7 @@ def test_several_poses_of_one_bone_are_each_reproduced_and_rest_stays_rest():
         sculpts[name] = (degrees, sculpt)
     stored = json.loads(skin["myoskin_correctives"])["correctives"]
     assert [e["name"] for e in stored] == ["elbow_60", "elbow_110"]
+    assert len(sculpts) == 2
     for name, (degrees, sculpt) in sculpts.items():
         set_pose(arm, {"forearm": (degrees, (1.0, 0.0, 0.0))})
         err = float(np.linalg.norm(evaluated(skin) - sculpt, axis=1).max()) / size

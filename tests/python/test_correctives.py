@@ -141,6 +141,7 @@ def test_makehuman_elbow_and_knee_sculpts_reproduced_with_the_muscle_joints_and_
         sculpts.append(sculpt)
         offsets[-1] = _core.rest_space_offsets(skinner, t, base, sculpt)
     drivers = _core.CorrectiveDrivers(poses, falloff=math.radians(70))
+    assert len(sculpts) == len(cases) > 0
     for (name, _bone, rotations), sculpt in zip(cases, sculpts):
         pose = pose_of(c, rotations)
         t = transforms_of(c, rig, pose)
