@@ -52,4 +52,5 @@ PYBIND11_MODULE(_core, m) {
   myoskin::python::bindExtraction(m);
   myoskin::python::bindDeformation(m);
   myoskin::python::bindSkinning(m);
+  myoskin::python::bindDynamics(m);
 }
