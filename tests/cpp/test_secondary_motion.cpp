@@ -328,6 +328,21 @@ TEST(Jiggle, RestStaysExactAndJointsMoveByInfluence) {
     const Vec3 moved = s.jointMatrices[j].block<3, 1>(0, 3) - base.jointMatrices[j].block<3, 1>(0, 3);
     EXPECT_LT((moved - moving.influence()[j] * o[0]).norm(), 1e-12 * kSize);
   }
+  // Posed surfaces move with the joints: most mid-belly, least at the ends, never more than the offset.
+  MuscleRigState ws = rig.makeState(), wbase = rig.makeState();
+  rig.evaluate(seq.frames[14], ws, true);
+  rig.evaluate(seq.frames[14], wbase, true);
+  moving.apply(15, ws);
+  ASSERT_GT(ws.surfaces[0].rows(), 0);
+  double most = 0, least = 1e9;
+  for (Eigen::Index v = 0; v < ws.surfaces[0].rows(); ++v) {
+    const Vec3 d = (ws.surfaces[0].row(v) - wbase.surfaces[0].row(v)).transpose();
+    EXPECT_LT(d.cross(o[0]).norm(), 1e-12) << "moves along the offset";
+    most = std::max(most, d.norm()), least = std::min(least, d.norm());
+  }
+  EXPECT_LE(most, o[0].norm() * (1 + 1e-12));
+  EXPECT_GT(most, 0.9 * o[0].norm());
+  EXPECT_LT(least, 0.5 * most);
 }
 
 TEST(Jiggle, LargeOffsetsSaturate) {

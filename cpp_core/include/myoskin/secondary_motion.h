@@ -91,7 +91,8 @@ class JiggleTrack {
   // The same before the limit and `amount`: the spring's own offsets (tests of the dynamics).
   void springOffsets(double frame, std::vector<Vec3>& out);
   // Moves each muscle joint of `state` (the rig evaluated at this frame's pose) by influence x its muscle's
-  // offset: the joint matrices a bake writes to the muscle joints' Action.
+  // offset: the joint matrices a bake writes to the muscle joints' Action. Posed surfaces in the state (when
+  // evaluated with them) move too, each vertex by the joints' influence interpolated at its place along the muscle.
   void apply(double frame, MuscleRigState& state);
 
   // The grid state a frame's result starts from (the last grid step at or before the frame).
@@ -193,8 +194,8 @@ struct SimulationOptions {
 };
 
 // Where a per-frame skin solve (collision against the muscles) plugs in: called on every raw frame after
-// skinning, before the filter, with the frame number, its pose, the rig state (jiggled joints; posed surfaces
-// when the rig has any) and the skinned positions to change in place.
+// skinning, before the filter, with the frame number, its pose, the rig state (jiggled joints and jiggled posed
+// surfaces; null without a rig) and the skinned positions to change in place.
 using SkinSolveHook = std::function<void(int frame, const Pose& pose, const MuscleRigState* rig, PointsF& skin)>;
 
 // What a chunk of a bake starts from: the jiggle's grid state for a frame and the settings it was made with

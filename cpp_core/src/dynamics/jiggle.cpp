@@ -130,6 +130,7 @@ struct JiggleTrack::Impl {
   std::vector<JiggleParams> params;
   std::vector<double> influence;
   std::vector<double> limit;                 // #M soft limit (maxOffset x mean radius)
+  std::vector<Eigen::VectorXd> surfaceInfluence;  // #M: per rest surface vertex, the joints' influence there
   std::vector<Eigen::Matrix2d> step;         // #M propagators over timeStep
   double stepsPerFrame = 10.0;               // 1 / (fps timeStep)
   // Goals (#F x #M), evaluated lazily per frame.
@@ -317,6 +318,37 @@ JiggleTrack::JiggleTrack(const MuscleRig& rig, const PoseSequence& poses, double
     d.limit[m] = options.maxOffset * r;
     d.step[m] = propagator(d.params[m], options.timeStep);
   }
+  // The surfaces' vertices move with the joints: influence interpolated along origin -> insertion between the
+  // joints' rest positions (constant past the end joints).
+  d.surfaceInfluence.resize(M);
+  for (int m = 0; m < M; ++m) {
+    const Muscle& mu = rig.muscles()[m];
+    const Vec3 o = mu.origin.position, axis = mu.insertion.position - o;
+    const double len2 = std::max(axis.squaredNorm(), 1e-30);
+    std::vector<std::pair<double, double>> stations;  // (t, influence) of the joints
+    for (int k = 0; k < rig.jointCount(m); ++k) {
+      const int j = rig.jointOffset(m) + k;
+      stations.emplace_back((rig.bindMatrices()[j].block<3, 1>(0, 3) - o).dot(axis) / len2, d.influence[j]);
+    }
+    std::sort(stations.begin(), stations.end());
+    const Points& sv = rig.restSurface(m).vertices;
+    Eigen::VectorXd& w = d.surfaceInfluence[m];
+    w.resize(sv.rows());
+    for (Eigen::Index v = 0; v < sv.rows(); ++v) {
+      const double t = (sv.row(v).transpose() - o).dot(axis) / len2;
+      size_t i = 0;
+      while (i < stations.size() && stations[i].first < t) ++i;
+      if (i == 0)
+        w[v] = stations.front().second;
+      else if (i == stations.size())
+        w[v] = stations.back().second;
+      else {
+        const auto &a = stations[i - 1], &b = stations[i];
+        const double span = b.first - a.first;
+        w[v] = span > 0.0 ? a.second + (b.second - a.second) * (t - a.first) / span : b.second;
+      }
+    }
+  }
   d.goals.assign(static_cast<size_t>(d.numFrames()) * M, Vec3::Zero());
   d.haveGoal.assign(d.numFrames(), 0);
   d.rigState = rig.makeState();
@@ -364,6 +396,14 @@ void JiggleTrack::apply(double frame, MuscleRigState& state) {
     for (int k = 0; k < d.rig.jointCount(m); ++k) {
       const int j = d.rig.jointOffset(m) + k;
       state.jointMatrices[j].block<3, 1>(0, 3) += d.influence[j] * o[m];
+    }
+  // Posed surfaces (when evaluated) move with their joints, so a skin solve collides with the jiggled muscles.
+  if (state.surfaces.size() == static_cast<size_t>(d.numMuscles()))
+    for (int m = 0; m < d.numMuscles(); ++m) {
+      Points& sv = state.surfaces[m];
+      const Eigen::VectorXd& w = d.surfaceInfluence[m];
+      if (sv.rows() != w.size()) continue;  // not evaluated with surfaces
+      for (Eigen::Index v = 0; v < sv.rows(); ++v) sv.row(v) += w[v] * o[m].transpose();
     }
 }
 

@@ -101,7 +101,6 @@ SimulationState readSimulationState(const std::string& path) {
 
 struct Simulation::Impl {
   Triangles triangles;
-  Points restVertices;
   Skeleton skeleton;
   std::optional<MuscleRig> rig;
   std::shared_ptr<const Skinner> skinner;
@@ -225,7 +224,6 @@ Simulation::Simulation(const Mesh& skin, const Skeleton& skeleton, const MuscleR
   }
   if (options.jiggle && !rig) throw InputError("simulation: jiggle needs muscles (a rig)");
   d.triangles = skin.triangles;
-  d.restVertices = skin.vertices;
   d.skeleton = skeleton;
   if (rig) d.rig.emplace(*rig);
   d.skinner = std::move(skinner);
