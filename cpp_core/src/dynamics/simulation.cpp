@@ -1,6 +1,7 @@
 // The simulation over a pose sequence: per frame skinning (Equation 3) with jiggled muscle joints, the skin
 // solve hook, the temporal filter on what the skin solve added (against the neighbouring frames) and the sculpt
 // deltas; baked in chunks that stitch bit-identically through state files.
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
@@ -295,6 +296,7 @@ void Simulation::restore(const SimulationState& s) {
   if (s.startFrame != d.start) throw InputError(why + "for a sequence starting at frame " + std::to_string(s.startFrame));
   if (s.hasJiggle != static_cast<bool>(d.jiggle)) throw InputError(why + (s.hasJiggle ? "with" : "without") + " jiggle");
   d.checkFrame(s.frame, "the state's");
+  d.invalidate();  // raw frames kept from another history
   if (!d.jiggle) return;
   if (s.timeStep != d.options.jiggleOptions.timeStep) throw InputError(why + "with another jiggle time step");
   std::vector<std::string> names;
