@@ -54,4 +54,5 @@ PYBIND11_MODULE(_core, m) {
   myoskin::python::bindSkinning(m);
   myoskin::python::bindCorrectives(m);
   myoskin::python::bindAnchored(m);
+  myoskin::python::bindDynamics(m);
 }
