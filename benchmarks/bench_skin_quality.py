@@ -1,6 +1,8 @@
-"""Skin quality at bent joints, LBS vs DQS vs Myoskin (and Myoskin + Preserve Volume) through the core (benchmarks/skin_quality.py defines the
-measures). Prints a table per character; never asserts. Characters: makehuman_muscular_male, a generated biped
-(makeSyntheticBody, known muscles) and Quaternius' woman soldier (four meshes, x100). Usage (./myoskin.sh bench
+"""Skin quality at bent joints, LBS vs DQS vs Myoskin (and Myoskin + Preserve Volume) vs the anchored skin through the
+core (benchmarks/skin_quality.py defines the measures). Prints a table per character and a second one for the
+anchored skin (band, bulge, crossings, ms per frame against Equation 3 in the same run); never asserts. Characters:
+makehuman_muscular_male, a generated biped (makeSyntheticBody, known muscles), Quaternius' woman soldier (four
+meshes, x100) and Quaternius' horse (x100). Usage (./myoskin.sh bench
 runs it):
 
     PYTHONPATH=build/blender_scripts/addons/myoskin python3 benchmarks/bench_skin_quality.py [SHARED_DIR]
@@ -21,7 +23,9 @@ characters = [
     ("generated biped, seed 21", None, skin_quality.SYNTHETIC_BODY_JOINTS, Y_BACK),
     ("quaternius_woman_soldier", "characters/quaternius_woman_soldier/woman_soldier.glb",
      skin_quality.QUATERNIUS_JOINTS, Z_FORWARD),
+    ("quaternius_horse", "characters/quaternius_horse/horse.glb", skin_quality.HORSE_JOINTS, Z_FORWARD),
 ]
+anchored_rows = []
 print(f"{'character':24s} {'joint':20s} {'LBS band':>9s} {'DQS band':>9s} {'Blender DQS':>11s} {'Myoskin':>9s} "
       f"{'Myoskin+PV':>10s} {'bulge over LBS':>22s} {'+PV over LBS':>12s} {'+PV over DQS':>12s} "
       f"{'crossings LBS/DQS/Myo/Myo+PV':>29s}")
@@ -36,9 +40,18 @@ for name, relative, joints, facing in characters:
         character = core.load_character(path, require_weights=True)
     start = time.perf_counter()
     muscles, _ = core.extract_muscles(character)
-    for row in skin_quality.measure(core, character, muscles, joints, facing=facing):
+    for row in skin_quality.measure(core, character, muscles, joints, facing=facing, anchored=True):
+        anchored_rows.append((name, row))
         print(f"{name[:24]:24s} {row['label']:20s} {100 * row['lbs']:+8.1f}% {100 * row['dqs']:+8.1f}% "
               f"{100 * row['blender_dqs']:+10.1f}% {100 * row['myoskin']:+8.1f}% {100 * row['myoskin_pv']:+9.1f}% "
               f"{1000 * row['bulge']:7.1f} mm ({row['bulge'] / row['limb_radius']:.3f} r) {1000 * row['bulge_pv']:9.1f} mm {1000 * row['bulge_pv_over_dqs']:9.1f} mm "
               f"{row['crossings_lbs']:>8d}/{row['crossings_dqs']}/{row['crossings_myoskin']}/{row['crossings_myoskin_pv']}")
     print(f"{name}: {len(muscles)} muscles, measured in {time.perf_counter() - start:.1f} s")
+print()
+print(f"{'character':24s} {'joint':20s} {'LBS band':>9s} {'Myoskin+PV':>10s} {'anchored':>9s} {'anchored bulge over LBS':>24s} "
+      f"{'crossings LBS/+PV/anchored':>27s} {'anchored ms':>11s} {'Eq.3 ms':>8s} {'ratio':>6s}")
+for name, row in anchored_rows:
+    print(f"{name[:24]:24s} {row['label']:20s} {100 * row['lbs']:+8.1f}% {100 * row['myoskin_pv']:+9.1f}% "
+          f"{100 * row['anchored']:+8.1f}% {1000 * row['bulge_anchored']:9.1f} mm ({row['bulge_anchored'] / row['limb_radius']:+.3f} r) "
+          f"{row['crossings_lbs']:>14d}/{row['crossings_myoskin_pv']}/{row['crossings_anchored']} "
+          f"{row['ms_anchored']:11.2f} {row['ms_eq3']:8.2f} {row['ms_anchored'] / row['ms_eq3']:6.2f}")

@@ -1,7 +1,9 @@
 """Skin quality at bent joints through the core: band volume change and muscle bulge for plain linear blend
-skinning (LBS), dual quaternions (DQS), Myoskin (Equation 3 with the extracted muscles) and Myoskin with
+skinning (LBS), dual quaternions (DQS), Myoskin (Equation 3 with the extracted muscles), Myoskin with
 Preserve Volume (the core's preserve-volume skinner, Blender's dual quaternion blend, on the same hybrid
-weights and transforms, muscle joints included).
+weights and transforms, muscle joints included) and the anchored skin (issue 17: the skin anchored to muscle
+ellipsoids, bone capsules and joint spheres, with relaxation), with the time per frame of the anchored skin and of
+Equation 3 (rig + transforms + skinner).
 
 - band: the skin within 1.5 limb radii of the joint; its volume is the cone volume of its triangles from the
   joint's posed position (rigid motion of either side keeps it), reported as the change from rest;
@@ -29,6 +31,13 @@ SYNTHETIC_BODY_JOINTS = [
     ("knee flexion", "shin.L", "thigh.L", ("thigh.L",), "backward", 120.0),
     ("shoulder abduction", "upper_arm.L", "upper_arm.L", ("shoulder.L",), "outward", 90.0),
     ("hip flexion", "thigh.L", "thigh.L", ("hips",), "forward", 90.0),
+]
+# Quaternius' horse (Y up, facing +Z, x100 in its file): the front knee and the hind hock bend backward, the hind
+# leg's upper segment swings forward.
+HORSE_JOINTS = [
+    ("front knee", "FrontLowerLeg.L", "FrontUpperLeg.L", ("FrontUpperLeg.L",), "backward", 90.0),
+    ("hind hock", "BackLowerLeg.L", "BackUpperLeg.L", ("BackUpperLeg.L",), "forward", 60.0),
+    ("hind stifle", "BackUpperLeg.L", "BackLeg.L", ("BackLeg.L",), "backward", 45.0),
 ]
 QUATERNIUS_JOINTS = [
     ("elbow flexion", "LowerArm.L", "UpperArm.L", ("UpperArm.L",), "forward", 120.0),
@@ -135,12 +144,25 @@ def band_triangles(rest, triangles, joint_rest, radius):
     return inside[triangles].all(1)
 
 
-def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 0.0, 1.0)):
+def _best_time(f, repeats=5):
+    import time
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        f()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 0.0, 1.0), anchored=False):
     """Per joint: dict(label, lbs, dqs, blender_dqs, myoskin, myoskin_pv band changes, bulge and bulge_pv
     (m, over LBS), bulge_pv_over_dqs (m, over blender_dqs), limb_radius). blender_dqs is the core's preserve-volume skinner on the skeleton weights
-    (Blender's DQS, a cross-check of the numpy dqs); myoskin_pv the same skinner on the hybrid weights."""
+    (Blender's DQS, a cross-check of the numpy dqs); myoskin_pv the same skinner on the hybrid weights. With
+    `anchored`: also anchored (band change), bulge_anchored (m, over LBS), crossings_anchored, and the best time per
+    frame of the anchored skin (ms_anchored) and of Equation 3 (ms_eq3: rig, transforms and the skinner, built once)."""
     limb_radius = None
     rig = core.MuscleRig(character, muscles)
+    anchored_skin = core.AnchoredSkin(character, muscles) if anchored else None
     hj, hw = core.hybrid_weights(character, rig, **(hybrid_options or {}))
     rest = np.asarray(character.vertices)
     tris = np.asarray(character.triangles)
@@ -164,20 +186,31 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
         myo = np.asarray(core.skin(rest, hj, hw, full), float)
         blender_dq = np.asarray(core.skin(rest, sj, sw, skel, preserve_volume=True, rest_matrices=bone_rest), float)
         myo_pv = np.asarray(core.skin(rest, hj, hw, full, preserve_volume=True, rest_matrices=combined_rest), float)
+        methods = [("lbs", lbs), ("dqs", dq), ("blender_dqs", blender_dq), ("myoskin", myo), ("myoskin_pv", myo_pv)]
+        timing = {}
+        if anchored_skin is not None:
+            anch = anchored_skin.evaluate(pose)
+            methods.append(("anchored", anch))
+            skinner = core.Skinner(rest, hj, hw, len(full))
+
+            def eq3():
+                st = rig.evaluate(pose, with_surfaces=False)
+                skinner.deform(core.skinning_transforms(character, pose, rig, st["joint_matrices"]))
+            timing = dict(ms_anchored=1e3 * _best_time(lambda: anchored_skin.evaluate(pose)), ms_eq3=1e3 * _best_time(eq3))
         b = names.index(bone)
         joint_rest = heads[b]
         joint_posed = pose[b][:3, 3]
         try:
             band = {k: band_volume_change(rest, v, tris, joint_rest, joint_posed, 1.5 * limb_radius)
-                    for k, v in (("lbs", lbs), ("dqs", dq), ("blender_dqs", blender_dq), ("myoskin", myo),
-                                 ("myoskin_pv", myo_pv))}
+                    for k, v in methods}
         except ValueError:  # a joint deep inside the body (a hip inside a wide pelvis): no band to measure
             print(f"{label}: no skin within 1.5 limb radii of the joint, not measured")
             continue
         mask = band_triangles(rest, tris, joint_rest, 1.5 * limb_radius)
         at_rest = core.self_intersections(rest, tris, mask)
         crossings = {"crossings_" + k: core.self_intersections(v, tris, mask) - at_rest
-                     for k, v in (("lbs", lbs), ("dqs", blender_dq), ("myoskin", myo), ("myoskin_pv", myo_pv))}
+                     for k, v in (("lbs", lbs), ("dqs", blender_dq), ("myoskin", myo), ("myoskin_pv", myo_pv))
+                     + ((("anchored", anch),) if anchored_skin is not None else ())}
         upper_ids = [names.index(u) for u in upper if u in names]
         dominant = sj[np.arange(len(sj)), np.argmax(sw, axis=1)]
         on_upper = np.isin(dominant, upper_ids)
@@ -188,7 +221,8 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
         # With preserve volume the skin moves off LBS without muscles too (the DQS blend): the muscles' own
         # bulge in that mode is measured over the skeleton-only DQS skin.
         dq_normals = np.asarray(core.vertex_normals(blender_dq, tris))
+        extra = dict(bulge_anchored=bulge_of(anch)) if anchored_skin is not None else {}
         rows.append(dict(label=label, bulge=bulge_of(myo), bulge_pv=bulge_of(myo_pv),
                          bulge_pv_over_dqs=bulge_of(myo_pv, blender_dq, dq_normals), limb_radius=limb_radius, **band,
-                         **crossings))
+                         **crossings, **extra, **timing))
     return rows

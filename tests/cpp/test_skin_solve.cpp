@@ -19,6 +19,8 @@
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
 #include "myoskin/io.h"
+#include "myoskin/pose_io.h"
+#include "myoskin/secondary_motion.h"
 #include "myoskin/skin_solve.h"
 #include "myoskin/skinning.h"
 #include "myoskin/synthetic_character.h"
@@ -355,6 +357,53 @@ TEST(SkinSolve, DeterministicAndNothingCarriedBetweenFrames) {
   s.rig->evaluate(a, state, true);
   solver.solve(Points(goalF.cast<double>()), state, fromD);
   EXPECT_EQ((fromF - fromD).cwiseAbs().maxCoeff(), 0.0);
+  // In place on float32 (Simulation's skin-solve hook): the same skin, rounded to float.
+  PointsF inPlace = goalF;
+  solver.solveInPlace(inPlace, state);
+  EXPECT_EQ((inPlace - fromF.cast<float>()).cwiseAbs().maxCoeff(), 0.0f);
+  EXPECT_GT((inPlace - goalF).cwiseAbs().maxCoeff(), 0.0f);
+}
+
+TEST(SkinSolve, PlugsIntoTheSimulationsSkinSolveHook) {
+  // The simulation (jiggle on, filter on) with the solve as its hook: every frame's raw skin is the solve of the
+  // (jiggled) skinned frame against the (jiggled) posed muscles, and no vertex outside at rest ends inside one.
+  const Rigged& s = arm();
+  SkinSolver solver(s.character.mesh, *s.rig, defaultGoalWeights(s.combined, s.character.skeleton.numBones()));
+  PoseSequence poses;
+  poses.startFrame = 1;
+  for (double degrees : {0.0, 40.0, 80.0, 110.0}) {
+    Pose pose = restPose(s.character.skeleton);
+    bend(s.character.skeleton, pose, "forearm", "upper_arm", degrees);
+    poses.frames.push_back(pose);
+  }
+  SimulationOptions o;
+  o.jiggle = true;
+  o.filter = true;
+  auto skinner = std::make_shared<Skinner>(s.character.mesh.vertices, s.combined,
+                                           s.character.skeleton.numBones() + s.rig->numJoints());
+  Simulation sim(s.character.mesh, s.character.skeleton, s.rig.get(), skinner, poses, o);
+  int calls = 0, changed = 0;
+  std::vector<Points> surfaces;  // the posed (jiggled) muscles the hook saw, per frame
+  sim.setSkinSolve([&](int frame, const Pose&, const MuscleRigState* rig, PointsF& skin) {
+    ASSERT_NE(rig, nullptr);
+    const PointsF before = skin;
+    solver.solveInPlace(skin, *rig);
+    ++calls;
+    changed += (skin - before).cwiseAbs().maxCoeff() > 0.0f;
+    if (frame == 4) surfaces = rig->surfaces;
+  });
+  PointsF raw;
+  sim.rawFrame(4, raw);
+  EXPECT_GT(calls, 0);
+  EXPECT_GT(changed, 0) << "the solve never changed a frame";
+  ASSERT_EQ(static_cast<int>(surfaces.size()), s.rig->numMuscles());
+  int inside = 0;
+  for (int m = 0; m < s.rig->numMuscles(); ++m) {
+    const CgalMuscle c(surfaces[m], s.rig->restSurface(m).triangles);
+    for (int v = 0; v < raw.rows(); ++v)
+      inside += c.depth(raw.row(v).transpose().cast<double>()) > solver.restDepth()[v] + 1e-6 * s.size;
+  }
+  EXPECT_EQ(inside, 0);
 }
 
 // ============================================================================

@@ -129,6 +129,10 @@ class SkinSolver {
   // solver's scratch buffers); no allocation once out has its size.
   void solve(const Points& goal, const MuscleRigState& state, Points& out);
   void solve(const PointsF& goal, const MuscleRigState& state, Points& out);
+  // In place on float32 positions, the shape of Simulation's SkinSolveHook (secondary_motion.h): skin holds the
+  // goal on entry and the solved skin on exit, e.g. sim.setSkinSolve([&](int, const Pose&, const MuscleRigState* rig,
+  // PointsF& skin) { if (rig) solver.solveInPlace(skin, *rig); }) with the rig evaluated with surfaces.
+  void solveInPlace(PointsF& skin, const MuscleRigState& state);
 
   // Signed distance of a point to the muscle union as last refitted (rest at build, then the last solve's pose):
   // negative inside. For tests and tools.

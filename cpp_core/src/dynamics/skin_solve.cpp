@@ -127,6 +127,7 @@ struct SkinSolver::Impl {
   // Scratch.
   Points buffer[2];
   Points goal;
+  Points result;  // solveInPlace's double-precision output
   // Per sliding vertex, this frame: within near of anchorNear its nearest muscle cannot hold it, within far of
   // anchorFar no other muscle of its region can (muscles do not move within a frame), so queries are skipped.
   Points anchorNear, anchorFar;
@@ -533,6 +534,12 @@ void SkinSolver::solve(const PointsF& goal, const MuscleRigState& state, Points&
                      std::to_string(s.nv));
   s.goal = goal.cast<double>();
   solve(s.goal, state, out);
+}
+
+void SkinSolver::solveInPlace(PointsF& skin, const MuscleRigState& state) {
+  Impl& s = *impl_;
+  solve(skin, state, s.result);
+  skin = s.result.cast<float>();
 }
 
 double SkinSolver::signedDistance(const Vec3& p) const {
