@@ -1,7 +1,8 @@
 // The per-frame skin solve (skin_solve.h) against the Eq. 3 skinner on the same frame: makehuman_muscular_male
 // (13k vertices; target under 10 ms) and a generated biped of ~100k vertices (target under 100 ms), 2 threads.
 // Prints the median time per frame of the skinner (baseline), the rig's evaluation with surfaces and the solve, and
-// the solve's ratio to the skinner and to its target.
+// the solve's ratio to the skinner and to its target, and the CPU time over all threads (the machine may be shared).
+// MYOSKIN_SKIN_SOLVE_ITERATIONS=N overrides the sweep budget (0: refit and the last collision pass alone).
 #include <algorithm>
 #include <cstdlib>
 #include <chrono>
