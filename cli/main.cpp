@@ -29,6 +29,7 @@
 #include "myoskin/io.h"
 #include "myoskin/pose_io.h"
 #include "myoskin/secondary_motion.h"
+#include "myoskin/skin_solve.h"
 #include "myoskin/sections.h"
 #include "myoskin/skinning.h"
 #include "myoskin/synthetic_character.h"
@@ -305,6 +306,7 @@ int deformAnchored(const Args& args, const Character& c, const PoseSequence& pos
 struct BoundSkin {
   Character character;
   std::unique_ptr<MuscleRig> rig;
+  SkinWeights weights;  // what the skinner skins with (combined with --muscles, else the skeleton's)
   SkinnerOptions options;
   std::shared_ptr<Skinner> skinner;
 };
@@ -331,12 +333,12 @@ BoundSkin bindFromArgs(const Args& args, const std::string& command, const std::
     throw InputError(command + ": --dominance needs --muscles");
   b.character = loadArgCharacter(args, command);
   const Character& c = b.character;
-  SkinWeights weights = c.weights;
+  b.weights = c.weights;
   if (args.options.count("--muscles")) {
     b.rig = std::make_unique<MuscleRig>(c.skeleton, readMusclesJson(args.options.at("--muscles")));
     HybridWeightOptions ho;
     ho.dominance = numberOption(args, "--dominance", ho.dominance);
-    weights = computeHybridWeights(c.mesh, c.weights, *b.rig, ho);
+    b.weights = computeHybridWeights(c.mesh, c.weights, *b.rig, ho);
   }
   const int numJoints = c.skeleton.numBones() + (b.rig ? b.rig->numJoints() : 0);
   if (b.options.preserveVolume) {
@@ -346,7 +348,7 @@ BoundSkin bindFromArgs(const Args& args, const std::string& command, const std::
       for (const auto& bone : c.skeleton.bones) b.options.jointRest.push_back(bone.rest);
     }
   }
-  b.skinner = std::make_shared<Skinner>(c.mesh.vertices, weights, numJoints, b.options);
+  b.skinner = std::make_shared<Skinner>(c.mesh.vertices, b.weights, numJoints, b.options);
   return b;
 }
 
@@ -442,8 +444,7 @@ int cmdSimulate(const Args& args) {
   const std::string out = args.options.at("--output");
   if (!endsWith(out, ".pc2")) throw InputError("simulate: -o must end in .pc2, got '" + out + "'");
   auto has = [&](const char* flag) { return std::find(args.flags.begin(), args.flags.end(), flag) != args.flags.end(); };
-  // The per-frame skin solve (collision against the muscles) plugs in at Simulation::setSkinSolve.
-  if (has("--skin-solve")) throw InputError("simulate: --skin-solve is not available in this build");
+  if (has("--skin-solve") && !args.options.count("--muscles")) throw InputError("simulate: --skin-solve needs --muscles");
   SimulationOptions so;
   so.fps = numberOption(args, "--fps", so.fps);
   if (!(so.fps > 0)) throw InputError("--fps must be > 0");
@@ -462,6 +463,16 @@ int cmdSimulate(const Args& args) {
   const Character& c = b.character;
   const PoseSequence poses = readPoseJson(args.options.at("--pose"), c.skeleton);
   Simulation sim(c.mesh, c.skeleton, b.rig.get(), b.skinner, poses, so);
+  // The per-frame skin solve: the skinned (jiggled) frame is the goal, the posed muscles collide.
+  std::unique_ptr<SkinSolver> solver;
+  Points solved;
+  if (has("--skin-solve")) {
+    solver = std::make_unique<SkinSolver>(c.mesh, *b.rig, defaultGoalWeights(b.weights, c.skeleton.numBones()));
+    sim.setSkinSolve([&](int, const Pose&, const MuscleRigState* state, PointsF& skin) {
+      solver->solve(skin, *state, solved);
+      skin = solved.cast<float>();
+    });
+  }
   int first = sim.firstFrame(), last = sim.lastFrame();
   if (args.options.count("--frames")) frameRange(args.options.at("--frames"), first, last);
   if (args.options.count("--sculpt")) {
@@ -481,8 +492,9 @@ int cmdSimulate(const Args& args) {
       sim.bake(first, last, [&](int, const PointsF& frame) { writer.writeFrame(frame); }, stateIn.get());
   writer.close();
   if (args.options.count("--state-out")) writeSimulationState(args.options.at("--state-out"), end);
-  std::printf("simulated %s (%d vertices, %d muscles%s%s%s, %g fps): frames %d-%d -> %s\n", c.name.c_str(),
+  std::printf("simulated %s (%d vertices, %d muscles%s%s%s%s, %g fps): frames %d-%d -> %s\n", c.name.c_str(),
               c.mesh.numVertices(), b.rig ? b.rig->numMuscles() : 0, so.jiggle ? ", jiggle" : "",
+              solver ? ", skin solve" : "",
               so.filter ? ", filter" : "", args.options.count("--sculpt") ? ", sculpt" : "", so.fps, first, last,
               out.c_str());
   return 0;

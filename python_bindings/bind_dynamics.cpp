@@ -8,6 +8,7 @@
 #include "myoskin/character.h"
 #include "myoskin/errors.h"
 #include "myoskin/secondary_motion.h"
+#include "myoskin/skin_solve.h"
 
 namespace myoskin::python {
 
@@ -256,8 +257,13 @@ void bindDynamics(py::module_& m) {
       [](const Character& c, const std::shared_ptr<Skinner>& skinner, const DoubleArray& poses, const py::object& rig,
          double fps, int startFrame, bool jiggle, bool filter, const py::object& sculpt, const py::object& sculptFrame,
          const py::object& frames, const py::object& stateIn, const py::object& stateOut, const py::object& pc2,
-         double jiggleFrequency, double jiggleDamping, double jiggleAmount) {
+         double jiggleFrequency, double jiggleDamping, double jiggleAmount, const py::object& skinSolve) {
         const PyMuscleRig* r = rig.is_none() ? nullptr : &rig.cast<const PyMuscleRig&>();
+        std::optional<Eigen::VectorXd> goalWeights;
+        if (!skinSolve.is_none()) {
+          if (!r) throw InputError("simulate: skin_solve needs the rig");
+          goalWeights = skinSolve.cast<Eigen::VectorXd>();
+        }
         const PoseSequence seq = sequenceArg(poses, c.skeleton.numBones(), startFrame);
         SimulationOptions o;
         o.fps = fps;
@@ -288,6 +294,15 @@ void bindDynamics(py::module_& m) {
         {
           py::gil_scoped_release release;
           Simulation sim(c.mesh, c.skeleton, r, skinner, seq, o);
+          std::unique_ptr<SkinSolver> solver;
+          Points solved;
+          if (goalWeights) {
+            solver = std::make_unique<SkinSolver>(c.mesh, *r, *goalWeights);
+            sim.setSkinSolve([&](int, const Pose&, const MuscleRigState* state, PointsF& skin) {
+              solver->solve(skin, *state, solved);
+              skin = solved.cast<float>();
+            });
+          }
           if (sculpted) sim.setSculpt(*sculpted, sculptAt);
           std::optional<SimulationState> in;
           if (!inPath.empty()) in = readSimulationState(inPath);
@@ -314,11 +329,12 @@ void bindDynamics(py::module_& m) {
       py::arg("sculpt") = py::none(), py::arg("sculpt_frame") = py::none(), py::arg("frames") = py::none(),
       py::arg("state_in") = py::none(), py::arg("state_out") = py::none(), py::arg("pc2") = py::none(),
       py::arg("jiggle_frequency") = jd.frequency, py::arg("jiggle_damping") = jd.dampingRatio,
-      py::arg("jiggle_amount") = jd.amount,
+      py::arg("jiggle_amount") = jd.amount, py::arg("skin_solve") = py::none(),
       "Simulates the pose sequence (#F by #B by 4 by 4, frames start_frame ...) on the character through the "
       "skinner (built over its bones + the rig's joints): jiggle of the muscle masses, the temporal filter, "
       "sculpt (#V by 3, the skin sculpted on sculpt_frame). frames=(first, last) bakes a chunk; state_in / "
-      "state_out are the state files that stitch chunks. Returns #frames by #V by 3 float32, or writes pc2.");
+      "state_out are the state files that stitch chunks; skin_solve: #V goal weights "
+      "(default_goal_weights) to solve the skin against the posed muscles every frame (SkinSolver). Returns #frames by #V by 3 float32, or writes pc2.");
 }
 
 }  // namespace myoskin::python

@@ -64,8 +64,7 @@ def test_cli_chunks_stitch_to_the_single_bake(core, arm_files):
 
 def test_cli_bad_input(core, arm_files):
     d = arm_files
-    for extra, message in [(["--skin-solve"], "not available in this build"),
-                           (["--jiggle", "--frames", "5-2"], "comes before"),
+    for extra, message in [(["--jiggle", "--frames", "5-2"], "comes before"),
                            (["--frames", "1-99"], "outside the sequence"),
                            (["--jiggle", "--fps", "0"], "--fps must be > 0"),
                            (["--jigle"], "unknown option '--jigle'"),
@@ -76,6 +75,35 @@ def test_cli_bad_input(core, arm_files):
         assert r.returncode == 1 and message in r.stderr and r.stderr.count("\n") == 1, (extra, r.stderr)
     r = run_cli("simulate", str(d / "arm.obj"), "--pose", str(d / "seq.json"), "-o", str(d / "x.pc2"), "--jiggle")
     assert r.returncode == 1 and "--jiggle needs --muscles" in r.stderr
+    r = run_cli("simulate", str(d / "arm.obj"), "--pose", str(d / "seq.json"), "-o", str(d / "x.pc2"), "--skin-solve")
+    assert r.returncode == 1 and "--skin-solve needs --muscles" in r.stderr
+
+
+def test_skin_solve_in_the_simulation_cli_and_python(core, arm_files):
+    """simulate --skin-solve: rest frames stay the skin, bent frames are solved (skin outside the posed muscles
+    where it was outside at rest), chunks still stitch, and Python's simulate(skin_solve=...) gives the same."""
+    d = arm_files
+    simulate(d, d / "solved.pc2", "--jiggle", "--skin-solve")
+    simulate(d, d / "jiggled.pc2", "--jiggle")
+    solved = core.read_pc2(str(d / "solved.pc2"))["frames"]
+    jiggled = core.read_pc2(str(d / "jiggled.pc2"))["frames"]
+    character = core.load_character(str(d / "arm.obj"))
+    size = np.ptp(character.vertices, axis=0).max()
+    assert np.abs(solved[0] - character.vertices).max() <= 1e-6 * size, "the rest frame is the skin"
+    moved = np.abs(solved - jiggled).max(axis=(1, 2))
+    assert moved[6:].max() > 1e-5 * size, "the solve must act on the swung arm"
+    assert moved.max() < 0.05 * size
+    simulate(d, d / "s_a.pc2", "--jiggle", "--skin-solve", "--frames", "1-12", "--state-out", str(d / "ss12.json"))
+    simulate(d, d / "s_b.pc2", "--jiggle", "--skin-solve", "--frames", "13-24", "--state-in", str(d / "ss12.json"))
+    stitched = np.concatenate([core.read_pc2(str(d / n))["frames"] for n in ("s_a.pc2", "s_b.pc2")])
+    assert np.array_equal(stitched, solved)
+    rig = core.MuscleRig(character, core.read_muscles(str(d / "muscles.json")))
+    joints, weights = core.hybrid_weights(character, rig)
+    skinner = core.Skinner(character.vertices, joints, weights, character.num_bones + len(rig.joint_names))
+    goal_weights = core.default_goal_weights(joints, weights, character.num_bones)
+    frames = core.simulate(character, skinner, swing_poses(core, character), rig, 24.0, 1, jiggle=True,
+                           skin_solve=goal_weights)
+    assert frames.shape == solved.shape and np.abs(frames - solved).max() < 1e-6 * size
 
 
 def test_python_simulate_equals_the_cli_and_sculpt(core, arm_files):
