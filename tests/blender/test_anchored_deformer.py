@@ -114,10 +114,10 @@ def test_frame_change_plays_the_core_skin_and_reload_keeps_it():
     got = evaluated(skin)
     assert np.abs(got - core_anchored(arm, skin)).max() <= 1e-5 * size_of(skin)
     path = os.path.join(TMP, "anchored.blend")
+    names = skin.name, arm.name
     bpy.ops.wm.save_as_mainfile(filepath=path)
     bpy.ops.wm.open_mainfile(filepath=path)
-    skin = bpy.data.objects[skin.name]
-    arm = bpy.data.objects[arm.name]
+    skin, arm = (bpy.data.objects[n] for n in names)
     bpy.context.scene.frame_set(4)
     got = evaluated(skin)
     assert np.abs(got - core_anchored(arm, skin)).max() <= 1e-5 * size_of(skin)
