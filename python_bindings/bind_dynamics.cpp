@@ -257,7 +257,8 @@ void bindDynamics(py::module_& m) {
       [](const Character& c, const std::shared_ptr<Skinner>& skinner, const DoubleArray& poses, const py::object& rig,
          double fps, int startFrame, bool jiggle, bool filter, const py::object& sculpt, const py::object& sculptFrame,
          const py::object& frames, const py::object& stateIn, const py::object& stateOut, const py::object& pc2,
-         double jiggleFrequency, double jiggleDamping, double jiggleAmount, const py::object& skinSolve) {
+         double jiggleFrequency, double jiggleDamping, double jiggleAmount, const py::object& skinSolve,
+         const py::object& jiggleParams, const py::object& jiggleInfluence) {
         const PyMuscleRig* r = rig.is_none() ? nullptr : &rig.cast<const PyMuscleRig&>();
         std::optional<Eigen::VectorXd> goalWeights;
         if (!skinSolve.is_none()) {
@@ -272,6 +273,8 @@ void bindDynamics(py::module_& m) {
         o.jiggleOptions.frequency = jiggleFrequency;
         o.jiggleOptions.dampingRatio = jiggleDamping;
         o.jiggleOptions.amount = jiggleAmount;
+        o.jiggleParams = paramsArg(jiggleParams);
+        o.jiggleInfluence = influenceArg(jiggleInfluence);
         std::optional<Points> sculpted;
         if (!sculpt.is_none()) sculpted = pointsArg(sculpt.cast<DoubleArray>(), "sculpt");
         int first = startFrame, last = startFrame + static_cast<int>(seq.frames.size()) - 1;
@@ -329,12 +332,14 @@ void bindDynamics(py::module_& m) {
       py::arg("sculpt") = py::none(), py::arg("sculpt_frame") = py::none(), py::arg("frames") = py::none(),
       py::arg("state_in") = py::none(), py::arg("state_out") = py::none(), py::arg("pc2") = py::none(),
       py::arg("jiggle_frequency") = jd.frequency, py::arg("jiggle_damping") = jd.dampingRatio,
-      py::arg("jiggle_amount") = jd.amount, py::arg("skin_solve") = py::none(),
+      py::arg("jiggle_amount") = jd.amount, py::arg("skin_solve") = py::none(), py::arg("jiggle_params") = py::none(),
+      py::arg("jiggle_influence") = py::none(),
       "Simulates the pose sequence (#F by #B by 4 by 4, frames start_frame ...) on the character through the "
       "skinner (built over its bones + the rig's joints): jiggle of the muscle masses, the temporal filter, "
       "sculpt (#V by 3, the skin sculpted on sculpt_frame). frames=(first, last) bakes a chunk; state_in / "
       "state_out are the state files that stitch chunks; skin_solve: #V goal weights "
-      "(default_goal_weights) to solve the skin against the posed muscles every frame (SkinSolver). Returns #frames by #V by 3 float32, or writes pc2.");
+      "(default_goal_weights) to solve the skin against the posed muscles every frame (SkinSolver); jiggle_params (#M by 3) and "
+      "jiggle_influence (#J) as JiggleTrack's. Returns #frames by #V by 3 float32, or writes pc2.");
 }
 
 }  // namespace myoskin::python

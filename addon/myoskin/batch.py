@@ -59,6 +59,8 @@ def parse_args(argv):
     p.add_argument("--pc2", metavar="FILE", help="bake the skin to a PC2 cache (needs --bind and --bake)")
     p.add_argument("--skin-solve", action="store_true",
                    help="with --pc2: solve the skin against the posed muscles every frame (it slides over them)")
+    p.add_argument("--filter", action="store_true",
+                   help="with --pc2 --skin-solve: the temporal filter on what the solve adds")
     p.add_argument("--gltf", metavar="FILE", help="export skin + armature + helper bones to glTF")
     p.add_argument("-o", "--output", metavar="FILE.blend", help="save the result")
     return p.parse_args(argv)
@@ -285,7 +287,8 @@ def main(argv):
         if not frames:
             fail("--pc2 needs --bake A-B for its frame range")
         run_op(bpy.ops.myoskin.bake_pc2, filepath=os.path.abspath(args.pc2), frame_start=frames[0],
-               frame_end=frames[1], skin_solve=args.skin_solve)
+               frame_end=frames[1], skin_solve=args.skin_solve, jiggle=bool(state.jiggle),
+               temporal_filter=args.filter)
         written = addon("operators.rig").pc2_paths(os.path.abspath(args.pc2), addon("binding").bound_skins(arm))
         log(f"wrote {', '.join(written)}")
     if args.gltf:

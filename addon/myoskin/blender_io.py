@@ -279,6 +279,21 @@ def read_vertex_weights(mesh_obj, group_to_bone, num_vertices):
     return joints, weights
 
 
+def vertex_group_weights(mesh_obj, name):
+    """#V float64 weights of one vertex group (0 for vertices outside it; all 0 without the group)."""
+    out = np.zeros(len(mesh_obj.data.vertices))
+    group = mesh_obj.vertex_groups.get(name)
+    if group is None:
+        return out
+    index = group.index
+    for v in mesh_obj.data.vertices:
+        for g in v.groups:
+            if g.group == index:
+                out[v.index] = g.weight
+                break
+    return out
+
+
 # ------------------------------------------------------------------------------------------------
 # Blender -> core
 # ------------------------------------------------------------------------------------------------

@@ -129,6 +129,40 @@ def test_pc2_with_skin_solve_is_the_core_solve_and_rest_is_exact():
     assert np.abs(want - solved[-1]).max() <= 1e-5 * size
 
 
+def test_pc2_with_jiggle_plays_what_the_jiggled_action_plays():
+    arm, skin = animated_arm()
+    assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=20, jiggle=True) == {'FINISHED'}
+    path = os.path.join(os.environ.get("TMPDIR", "/tmp"), f"myoskin_jiggle_{os.getpid()}.pc2")
+    assert bpy.ops.myoskin.bake_pc2(filepath=path, frame_start=1, frame_end=20, jiggle=True) == {'FINISHED'}
+    frames = module("core_loader").core().read_pc2(path)["frames"]
+    assert frames.shape[0] == 20
+    rest = module("blender_io").mesh_vertices(skin.data)
+    size = float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0)))
+    for frame in (5, 12, 19):
+        bpy.context.scene.frame_set(frame)
+        bpy.context.view_layer.update()
+        err = np.abs(module("blender_io").evaluated_vertices(skin) - frames[frame - 1]).max()
+        assert err <= 1e-5 * size, f"frame {frame}: the PC2 is {err / size:.2e} of the size off the baked Action"
+
+
+def test_painted_group_scales_the_jiggle():
+    arm, skin = animated_arm()
+    assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=24) == {'FINISHED'}
+    plain = joint_heads(arm, range(1, 25))
+    group = skin.vertex_groups.new(name=module("operators.rig").JIGGLE_GROUP)
+    group.add(list(range(len(skin.data.vertices))), 0.0, 'REPLACE')  # painted 0 everywhere: no jiggle
+    assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=24, jiggle=True) == {'FINISHED'}
+    assert np.abs(joint_heads(arm, range(1, 25)) - plain).max() <= 1e-6
+    group.add(list(range(len(skin.data.vertices))), 1.0, 'REPLACE')  # 1 everywhere: the default jiggle
+    assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=24, jiggle=True) == {'FINISHED'}
+    painted = joint_heads(arm, range(1, 25))
+    skin.vertex_groups.remove(group)
+    assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=24, jiggle=True) == {'FINISHED'}
+    default = joint_heads(arm, range(1, 25))
+    assert np.abs(painted - plain).max() > 1e-5
+    assert np.abs(painted - default).max() <= 1e-6
+
+
 def test_bad_ranges_are_refused():
     animated_arm()
     msg = operator_error(bpy.ops.myoskin.bake_action, frame_start=10, frame_end=20, jiggle=True, jiggle_start=15)

@@ -170,24 +170,64 @@ def jiggle_params(state, rig, track):
     return params if changed else None
 
 
-def jiggle_track(context, arm, rig, start, end):
-    """(core JiggleTrack over frames start..end, #F by #B by 4 by 4 skeleton poses it was sampled from): the
-    evaluated skeleton of every frame (IK and constraints included) at the scene's frame rate, with the rig's
-    Jiggle settings. Deterministic: the same frames give the same track, so separate bakes of a range agree."""
-    scene, state = context.scene, rig_state(arm)
+JIGGLE_GROUP = "myoskin_jiggle"  # a vertex group painted on a skin: where its muscles may jiggle (0..1)
+
+
+def jiggle_influence(skins, rig, default):
+    """#J influences of the muscle joints: the default (fading toward the tendons) times, when a skin has the
+    vertex group JIGGLE_GROUP, the group's mean over the skin each joint moves (weighted by the joint's
+    weight; a vertex outside the group counts 0). None when no skin has the group."""
+    names = rig.bone_names + rig.joint_names
+    painted = [s for s in skins if JIGGLE_GROUP in s.vertex_groups]
+    if not painted:
+        return None
+    num_bones = len(rig.bone_names)
+    total = np.zeros(len(rig.joint_names))
+    hit = np.zeros(len(rig.joint_names))
+    for skin in painted:
+        joints, weights = rig_io.read_combined_weights(skin, names)
+        group = blender_io.vertex_group_weights(skin, JIGGLE_GROUP)  # #V, 0 outside the group
+        mask = joints >= num_bones
+        j = joints[mask] - num_bones
+        w = weights[mask]
+        g = np.broadcast_to(group[:, None], joints.shape)[mask]
+        np.add.at(total, j, w)
+        np.add.at(hit, j, w * g)
+    scale = np.divide(hit, total, out=np.ones_like(total), where=total > 0)
+    return np.asarray(default, dtype=np.float64) * scale
+
+
+def jiggle_settings(context, arm, rig, skins, poses):
+    """The rig's jiggle settings as JiggleTrack / simulate keywords: frequency, damping ratio, amount, the
+    per-muscle overrides (params) and the painted influence (JIGGLE_GROUP)."""
+    state = rig_state(arm)
+    settings = dict(frequency=state.jiggle_frequency, damping_ratio=state.jiggle_damping, amount=state.jiggle_amount)
+    scene = context.scene
+    defaults = core_loader.core().JiggleTrack(rig.character, rig.rig, poses[:1], scene.render.fps / scene.render.fps_base,
+                                              1.0, **settings)
+    settings["params"] = jiggle_params(state, rig, defaults)
+    settings["influence"] = jiggle_influence(skins, rig, defaults.influence)
+    return settings
+
+
+def sampled_poses(context, arm, rig, start, end):
+    """#F by #B by 4 by 4: the evaluated skeleton (IK and constraints included) of every frame start..end."""
     poses = []
     for frame in range(start, end + 1):
-        scene.frame_set(frame)
+        context.scene.frame_set(frame)
         poses.append(live.evaluated_pose(arm, rig, context.evaluated_depsgraph_get()))
-    poses = np.ascontiguousarray(poses, dtype=np.float64)
-    fps = scene.render.fps / scene.render.fps_base
-    settings = dict(frequency=state.jiggle_frequency, damping_ratio=state.jiggle_damping,
-                    amount=state.jiggle_amount)
-    core = core_loader.core()
-    track = core.JiggleTrack(rig.character, rig.rig, poses, fps, float(start), **settings)
-    params = jiggle_params(state, rig, track)
-    if params is not None:
-        track = core.JiggleTrack(rig.character, rig.rig, poses, fps, float(start), params=params, **settings)
+    return np.ascontiguousarray(poses, dtype=np.float64)
+
+
+def jiggle_track(context, arm, rig, start, end):
+    """(core JiggleTrack over frames start..end, #F by #B by 4 by 4 skeleton poses it was sampled from) at the
+    scene's frame rate with the rig's Jiggle settings. Deterministic: the same frames give the same track, so
+    separate bakes of a range agree."""
+    scene = context.scene
+    poses = sampled_poses(context, arm, rig, start, end)
+    settings = jiggle_settings(context, arm, rig, binding.bound_skins(arm), poses)
+    track = core_loader.core().JiggleTrack(rig.character, rig.rig, poses, scene.render.fps / scene.render.fps_base,
+                                           float(start), **settings)
     return track, poses
 
 
@@ -239,6 +279,13 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
                              description="Per frame, relax the skinned skin with edge springs toward a per-vertex goal "
                                          "and push it out of the posed muscles, so it slides over them (Gray & "
                                          "Hutchinson; muscle-joint skins only)")
+    jiggle: BoolProperty(name="Jiggle", default=False,
+                         description="Simulate the muscles' jiggle from the first frame (the rig's Jiggle settings, as "
+                                     "Bake Muscle Action keys it)")
+    temporal_filter: BoolProperty(name="Temporal Filter", default=False,
+                                  description="With Skin Solve: pull back what the solve adds where it jitters from "
+                                              "frame to frame (each vertex against the line through its neighbouring "
+                                              "frames; smooth motion passes unchanged)")
     mute_armature: BoolProperty(name="Mute Armature Modifier", default=True,
                                 description="With Add Mesh Cache Modifier: switch the mesh's Armature modifier off "
                                             "(the cache replaces its result, so it would only cost time); Unbind "
@@ -250,7 +297,8 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
             raise ValueError(f"Frame range {self.frame_start}-{self.frame_end} is empty")
         path = bpy.path.abspath(self.filepath)
         paths = pc2_paths(path, skins)
-        frames = bake_skin_frames(context, skins, arm, self.frame_start, self.frame_end, self.skin_solve)
+        frames = bake_skin_frames(context, skins, arm, self.frame_start, self.frame_end, self.skin_solve,
+                                  self.jiggle, self.temporal_filter)
         os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
         for skin, mesh_path, mesh_frames in zip(skins, paths, frames):
             core_loader.core().write_pc2(mesh_path, mesh_frames, float(self.frame_start), 1.0)
@@ -267,62 +315,55 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
         return f"Baked {count} frames of {len(skins)} meshes to " + ", ".join(paths)
 
 
-class SolvedSkin:
-    """A mesh's skinner followed by the skin solve: the skinned pose is the goal, the posed muscles collide."""
-
-    def __init__(self, skinner, solver, rig):
-        self.skinner, self.solver, self.rig = skinner, solver, rig
-
-    def solve(self, transforms, pose):
-        goal = self.skinner.deform(transforms).astype(np.float64)
-        return np.asarray(self.solver.solve(goal, self.rig, pose), dtype=np.float64)
-
-
-def bake_skin_frames(context, skins, arm, start, end, skin_solve=False):
-    """Per mesh of `skins`, #frames by #V by 3 float32 skin positions (mesh object space) from the core's
-    skinner (or anchored skin), with skin_solve each muscle-joint skin then solved against the posed muscles
-    (SkinSolver); the skeleton and the rig are evaluated once per frame for all of them."""
+def bake_skin_frames(context, skins, arm, start, end, skin_solve=False, jiggle=False, temporal_filter=False):
+    """Per mesh of `skins`, #frames by #V by 3 float32 skin positions (mesh object space) computed by the core:
+    the anchored skin, or Equation 3 (the skinner in the mode Blender skins the mesh with), through the core's
+    simulation when any of jiggle (the rig's Jiggle settings), skin_solve (the skin solved against the posed
+    muscles) or temporal_filter is on. The skeleton is sampled once per frame for all meshes."""
     core = core_loader.core()
     rig = live.live_rig(arm)
     names = rig.bone_names + rig.joint_names
     anchored = {name: (frame, deformer) for name, frame, deformer in rig.anchored}
-    meshes = []
-    for skin in skins:
-        if skin.name in anchored:  # the anchored deformer: the core's AnchoredSkin of this mesh, per pose
-            frame, deformer = anchored[skin.name]
-            meshes.append((deformer, frame.to_mesh, np.empty((end - start + 1, len(frame.rest), 3), dtype=np.float32)))
-            continue
-        joints, weights = rig_io.read_combined_weights(skin, names)
-        to_arm = blender_io.mesh_to_armature_matrix(skin, arm)
-        rest = blender_io.mesh_vertices(skin.data) @ to_arm[:3, :3].T + to_arm[:3, 3]
-        # The mode Blender skins this mesh with (its Armature modifier's Preserve Volume), so the PC2 equals
-        # Blender's skin; the transforms and rest matrices are in armature space, as the modifier's.
-        skinner = binding.skinner_for(skin, arm, rig, rest, joints, weights)
-        if skin_solve:
-            goal_weights = core.default_goal_weights(joints, weights, len(rig.bone_names))
-            skinner = SolvedSkin(skinner, core.SkinSolver(blender_io.character_from_blender(skin, arm), rig.rig,
-                                                          goal_weights), rig.rig)
-        meshes.append((skinner, np.linalg.inv(to_arm), np.empty((end - start + 1, len(rest), 3), dtype=np.float32)))
-    rest_bones = np.asarray(rig.character.bone_rest)
-    bind_inv = np.linalg.inv(np.asarray(rig.rig.bind_matrices))
     scene = context.scene
     current = scene.frame_current
     try:
-        for k, frame in enumerate(range(start, end + 1)):
-            scene.frame_set(frame)
-            pose = live.evaluated_pose(arm, rig, context.evaluated_depsgraph_get())
-            joint_matrices = rig.rig.evaluate(pose)["joint_matrices"]
-            transforms = np.concatenate([pose @ np.linalg.inv(rest_bones), joint_matrices @ bind_inv])
-            for deformer, to_mesh, out in meshes:
-                if isinstance(deformer, SolvedSkin):
-                    posed = deformer.solve(transforms, pose)
-                else:
-                    posed = (deformer.evaluate(pose) if hasattr(deformer, "evaluate")
-                             else deformer.deform(transforms)).astype(np.float64)
-                out[k] = posed @ to_mesh[:3, :3].T + to_mesh[:3, 3]
+        poses = sampled_poses(context, arm, rig, start, end)
     finally:
         scene.frame_set(current)
-    return [out for _deformer, _to_mesh, out in meshes]
+    simulated = jiggle or skin_solve or temporal_filter
+    settings = jiggle_settings(context, arm, rig, skins, poses) if jiggle else {}
+    rest_bones_inv = np.linalg.inv(np.asarray(rig.character.bone_rest))
+    bind_inv = np.linalg.inv(np.asarray(rig.rig.bind_matrices))
+    out = []
+    for skin in skins:
+        if skin.name in anchored:  # the anchored deformer: the core's AnchoredSkin of this mesh, per pose
+            frame, deformer = anchored[skin.name]
+            posed = np.array([deformer.evaluate(pose) for pose in poses])
+            to_mesh = frame.to_mesh
+        else:
+            joints, weights = rig_io.read_combined_weights(skin, names)
+            to_arm = blender_io.mesh_to_armature_matrix(skin, arm)
+            to_mesh = np.linalg.inv(to_arm)
+            rest = blender_io.mesh_vertices(skin.data) @ to_arm[:3, :3].T + to_arm[:3, 3]
+            # The mode Blender skins this mesh with (its Armature modifier's Preserve Volume), so the PC2 equals
+            # Blender's skin; the transforms and rest matrices are in armature space, as the modifier's.
+            skinner = binding.skinner_for(skin, arm, rig, rest, joints, weights)
+            if simulated:
+                goal_weights = core.default_goal_weights(joints, weights, len(rig.bone_names)) if skin_solve else None
+                posed = core.simulate(
+                    blender_io.character_from_blender(skin, arm), skinner, poses, rig.rig,
+                    scene.render.fps / scene.render.fps_base, start, jiggle=jiggle, filter=temporal_filter,
+                    skin_solve=goal_weights, jiggle_frequency=settings.get("frequency", 5.0),
+                    jiggle_damping=settings.get("damping_ratio", 0.3), jiggle_amount=settings.get("amount", 1.0),
+                    jiggle_params=settings.get("params"), jiggle_influence=settings.get("influence"))
+            else:
+                posed = np.empty((len(poses), len(rest), 3), dtype=np.float32)
+                for k, pose in enumerate(poses):
+                    joint_matrices = rig.rig.evaluate(pose)["joint_matrices"]
+                    posed[k] = skinner.deform(np.concatenate([pose @ rest_bones_inv, joint_matrices @ bind_inv]))
+        posed = np.asarray(posed, dtype=np.float64)
+        out.append((posed @ to_mesh[:3, :3].T + to_mesh[:3, 3]).astype(np.float32))
+    return out
 
 
 classes = (MYOSKIN_OT_bind, MYOSKIN_OT_unbind, MYOSKIN_OT_bake_action, MYOSKIN_OT_export_gltf,

@@ -256,7 +256,7 @@ class MYOSKIN_PT_bake(_WorkflowStep, bpy.types.Panel):
         layout.prop(state, "skin_solve")
         op = layout.operator("myoskin.bake_pc2", icon='FILE_CACHE')
         op.filepath, op.frame_start, op.frame_end = ui.pc2_path, ui.frame_start, ui.frame_end
-        op.skin_solve = state.skin_solve
+        op.skin_solve, op.jiggle, op.temporal_filter = state.skin_solve, state.jiggle, state.skin_solve
 
 
 classes = (MYOSKIN_UL_muscles, MYOSKIN_UL_bone_roles, MYOSKIN_PT_main, MYOSKIN_PT_extract, MYOSKIN_PT_bone_roles,
