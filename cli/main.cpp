@@ -304,6 +304,10 @@ int cmdDeform(const Args& args) {
   if (!pc2 && poses.frames.size() != 1)
     throw InputError("deform: the pose file has " + std::to_string(poses.frames.size()) +
                      " frames; write them to a .pc2 (an .obj takes one pose)");
+  const std::string method = args.options.count("--method") ? args.options.at("--method") : std::string("eq3");
+  if (method == "anchored") return deformAnchored(args, c, poses, out, pc2);
+  if (method != "eq3") throw InputError("deform: --method must be eq3 or anchored, got '" + method + "'");
+  if (args.options.count("--relax-iterations")) throw InputError("deform: --relax-iterations is for --method anchored");
   SkinnerOptions so;
   so.threads = static_cast<int>(numberOption(args, "--threads", 0));
   if (so.threads < 0) throw InputError("--threads must be >= 0 (0 = all cores)");

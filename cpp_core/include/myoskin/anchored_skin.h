@@ -169,7 +169,9 @@ struct AnchoringReport {
 
 // Per-frame statistics of the last evaluate (relaxation energy per iteration).
 struct RelaxationTrace {
-  std::vector<double> energy;  // sum over seam edges of (|e| - |e_rest|)^2, before each iteration and after the last
+  // Sum over the edges of this frame's active vertices (strained seam vertices and their neighbours) of
+  // (|e| - |e_rest|)^2, before the first iteration and after each; empty when nothing is strained (at rest).
+  std::vector<double> energy;
 };
 
 class AnchoredSkin {

@@ -278,12 +278,12 @@ void AnchoredSkin::evaluate(const Pose& pose, double* data, RelaxationTrace* tra
                               (m.posedCentre[k] + m.posedAxes[k] * (m.posedScale[k].cwiseProduct(q) + o)).transpose();
                         }
                       });
+    m.relaxer.run(out, m.options, trace);
   };
   if (m.arena)
     m.arena->execute(body);
   else
     body();
-  m.relaxer.run(out, m.options, trace);
 }
 
 void AnchoredSkin::posedComponents(const Pose& pose, std::vector<AnchoredComponent>& out) const {
