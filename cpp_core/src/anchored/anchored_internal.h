@@ -53,7 +53,10 @@ class Relaxer {
   // Jacobi iterations toward the rest lengths on x (#V by 3) over the strained seam vertices and their
   // neighbours, energy checked per iteration (a step that raises it is undone and halved); trace receives the
   // energies (none when nothing is strained, e.g. at rest). No allocation.
-  void run(Eigen::Map<Points> x, const AnchoredSkinOptions& options, RelaxationTrace* trace) const;
+  // normals: #V by 3 unit directions (the anchors' posed surface vectors) along which, with
+  // options.relaxTangential, the vertices do not move.
+  void run(Eigen::Map<Points> x, const Points& normals, const AnchoredSkinOptions& options,
+           RelaxationTrace* trace) const;
   // Edges of the mesh as pairs (a < b), from OpenMesh plus any faces it refused (non-manifold).
   static std::vector<std::pair<int, int>> meshEdges(const Mesh& mesh);
 

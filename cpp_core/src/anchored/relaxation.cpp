@@ -123,8 +123,10 @@ double Relaxer::energy(const Eigen::Map<Points>& x, int count) const {
 // of it, and its movable neighbours, are active this frame; the others keep their anchored positions. Each active
 // vertex moves `step` of the way to the mean of the points that would give each of its edges its rest length (the
 // neighbour plus the rest length along the current edge direction). Jacobi, so the result does not depend on the
-// order; an iteration that raises the energy is undone and retried with half the step.
-void Relaxer::run(Eigen::Map<Points> x, const AnchoredSkinOptions& options, RelaxationTrace* trace) const {
+// order; with relaxTangential the move keeps off the vertex's normal (the skin slides over its components
+// instead of shrinking onto them). An iteration that raises the energy is undone and retried with half the step.
+void Relaxer::run(Eigen::Map<Points> x, const Points& normals, const AnchoredSkinOptions& options,
+                  RelaxationTrace* trace) const {
   if (trace) trace->energy.clear();
   if (movable_.empty() || options.relaxIterations <= 0) return;
   const int n = static_cast<int>(movable_.size());
@@ -164,7 +166,12 @@ void Relaxer::run(Eigen::Map<Points> x, const AnchoredSkinOptions& options, Rela
           ++used;
         }
         backup_.row(a) = xv.transpose();
-        const Vec3 moved = used ? Vec3(xv + step * (target / used - xv)) : xv;
+        Vec3 delta = used ? Vec3(step * (target / used - xv)) : Vec3::Zero();
+        if (options.relaxTangential) {
+          const Vec3 nrm = normals.row(movable_[i]).transpose();
+          delta -= delta.dot(nrm) * nrm;
+        }
+        const Vec3 moved = xv + delta;
         next_.row(a) = moved.transpose();
       }
     });
