@@ -163,7 +163,7 @@ struct AnchoredSkinOptions {
   double relaxTolerance = 1e-4;   // stop when an iteration lowers the edge energy by less than this fraction
   double relaxStep = 0.5;         // Jacobi step toward the averaged edge-length targets, in (0, 1]
   // Move only across the vertex's normal (its anchor's posed surface vector): the skin slides over the components
-  // instead of shrinking onto them (full 3D moves lost 28 points of band volume at MakeHuman's 120-degree elbow).
+  // instead of shrinking onto them (moving in 3D, MakeHuman's 120-degree elbow band: -36.6 % instead of -13.6 %).
   bool relaxTangential = true;
   std::vector<int> pinned;        // vertices the relaxation never moves (besides those away from seams)
   int grainSize = 4096;           // vertices per parallel task
