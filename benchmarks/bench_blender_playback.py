@@ -9,6 +9,8 @@ animated elbow + shoulder on the synthetic arm at ~50k vertices, in one run:
                        evaluates twice (the route for IK / constraint-driven skeletons)
     bound, live+surf   the same with the muscle surfaces shown (written every frame)
     bound, baked       muscle joints baked to the Action, live update off (what a farm / no add-on plays)
+    bound, PC2 cache   the skin baked to a PC2 by the core and played by a Mesh Cache modifier, the Armature
+                       modifier muted (Bake PC2 with Add Mesh Cache Modifier; no add-on needed to play)
 
 Timing: every bound case plays the same 100 frames in each of --repeats passes (cases interleaved, their
 order reversed every other pass), alternating in chunks of 10 frames with the same frames of the baseline
@@ -21,6 +23,7 @@ Prints fps and the ratios to the baseline; never asserts. Run through `./myoskin
         --addons myoskin --python benchmarks/bench_blender_playback.py [-- --frames 100 --rings 600]
 """
 import argparse
+import os
 import sys
 import time
 
@@ -107,6 +110,32 @@ def main():
           f"bones + {joints} muscle joints ({len(state.muscles)} muscles), {args.frames} frames; bind "
           f"{bind_seconds:.2f} s; {args.repeats} interleaved passes, per-frame best", flush=True)
 
+    # The same character in a third scene, its skin baked to a PC2 that a Mesh Cache modifier plays.
+    cached_scene = bpy.data.scenes.new("Cached")
+    cached_scene.frame_start, cached_scene.frame_end = 1, args.frames
+    cached_arm, cached_skin = add_character(core, blender_io, bpy.context.scene, "CachedArm", args.rings, args.frames)
+    bpy.context.view_layer.objects.active = cached_skin
+    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'} and bpy.ops.myoskin.bind() == {'FINISHED'}
+    import tempfile
+    pc2 = os.path.join(tempfile.mkdtemp(prefix="myoskin_bench_"), "arm.pc2")
+    assert bpy.ops.myoskin.bake_pc2(filepath=pc2, frame_start=1, frame_end=args.frames, add_modifier=True) == {'FINISHED'}
+    cached_arm.myoskin.live = False
+    cached_arm.myoskin.collection.hide_viewport = True
+    for obj in [cached_arm, cached_skin] + list(cached_arm.myoskin.collection.objects):
+        cached_scene.collection.objects.link(obj)
+        for coll in list(obj.users_collection):
+            if coll != cached_scene.collection:
+                coll.objects.unlink(obj)
+
+    # The plain character with Preserve Volume (what Bind sets by default), to separate the dual-quaternion
+    # blend's own cost from Myoskin's.
+    pv_scene = bpy.data.scenes.new("SkeletonOnlyPV")
+    pv_scene.frame_start, pv_scene.frame_end = 1, args.frames
+    _pv_arm, pv_skin = add_character(core, blender_io, pv_scene, "PlainArmPV", args.rings, args.frames)
+    for mod in pv_skin.modifiers:
+        if mod.type == 'ARMATURE':
+            mod.use_deform_preserve_volume = True
+
     constraint = arm.pose.bones["forearm"].constraints.new('LIMIT_ROTATION')  # x towards 0 by 2 %
     constraint.use_limit_x, constraint.min_x, constraint.max_x, constraint.influence = True, 0.0, 0.0, 0.02
 
@@ -116,10 +145,14 @@ def main():
         constraint.mute = not constrained
 
     cases = [("bound, live", (True, False)), ("bound, live, 2-pass", (True, False, True)),
-             ("bound, live+surfaces", (True, True)), ("bound, baked", (False, False))]
+             ("bound, live+surfaces", (True, True)), ("bound, baked", (False, False)),
+             ("bound, PC2 cache", cached_scene), ("plain, Preserve Volume", pv_scene)]
     passes = {name: [] for name, _c in cases}
     for r in range(args.repeats):
         for name, config in (cases if r % 2 == 0 else cases[::-1]):
+            if isinstance(config, bpy.types.Scene):
+                passes[name].append(frame_seconds(config, plain_scene, args.frames))
+                continue
             configure(*config)
             passes[name].append(frame_seconds(bound_scene, plain_scene, args.frames))
     rows = []

@@ -4,6 +4,7 @@
 //   myoskin roles CHARACTER [-o roles.json]      the role extraction gives each bone
 //   myoskin extract CHARACTER -o muscles.json    muscle extraction
 //   myoskin deform CHARACTER --muscles M --pose P -o out.obj|.pc2
+//   myoskin simulate CHARACTER --muscles M --pose SEQ -o out.pc2 [--jiggle] [--filter] [--sculpt S.obj]
 // Every failure prints one line "myoskin: error: ..." and exits non-zero.
 #include <cstdio>
 #include <algorithm>
@@ -27,6 +28,7 @@
 #include "myoskin/extraction.h"
 #include "myoskin/io.h"
 #include "myoskin/pose_io.h"
+#include "myoskin/secondary_motion.h"
 #include "myoskin/sections.h"
 #include "myoskin/skinning.h"
 #include "myoskin/synthetic_character.h"
@@ -85,6 +87,13 @@ void usage(std::ostream& out) {
          "          --preserve-volume blends the joints as dual quaternions (Blender's Preserve Volume; scaled\n"
          "          joints as Blender 4.x/5.x do, or --dq-scale blended as Blender 3.x); pose\n"
          "          files: {\"bones\": {name: {\"rotation_quaternion\": [w,x,y,z]}}} or {\"frames\": [...]}\n"
+         "  simulate CHARACTER --pose SEQUENCE.json -o out.pc2 [--muscles M.json] [--jiggle] [--filter]\n"
+         "          [--sculpt SCULPT.obj [--sculpt-frame F]] [--frames A-B] [--state-in S.json] [--state-out S.json]\n"
+         "          [--fps F (24)] [--jiggle-frequency HZ (5)] [--jiggle-damping RATIO (0.3)] [--jiggle-amount A (1)]\n"
+         "          [--preserve-volume] [--dominance D] [--threads N] [--skin-solve]\n"
+         "          simulate a sequence to a PC2 cache: jiggle of the muscle masses, a temporal filter against jitter,\n"
+         "          detail sculpted on one frame re-applied on every frame; --frames with --state-in/--state-out\n"
+         "          bakes chunks in separate processes that stitch to the same result as one run\n"
          "CHARACTER is a .glb/.gltf, or an .obj with a <name>.skeleton.json beside it. ROLES.json: {\"bone\": \"role\"}.\n";
 }
 
@@ -291,6 +300,56 @@ int deformAnchored(const Args& args, const Character& c, const PoseSequence& pos
   return 0;
 }
 
+// A character bound for skinning as `deform` and `simulate` do it: the character, its muscle rig (with
+// --muscles; combined weights over bones + muscle joints, Equation 3) or none (plain LBS), and the skinner.
+struct BoundSkin {
+  Character character;
+  std::unique_ptr<MuscleRig> rig;
+  SkinnerOptions options;
+  std::shared_ptr<Skinner> skinner;
+};
+
+// Loads and binds from the command's arguments (--muscles, --dominance, --threads, --preserve-volume,
+// --dq-scale); `flags` are the command's other allowed flags (a mistyped one must not pass silently).
+BoundSkin bindFromArgs(const Args& args, const std::string& command, const std::vector<std::string>& flags) {
+  BoundSkin b;
+  b.options.threads = static_cast<int>(numberOption(args, "--threads", 0));
+  if (b.options.threads < 0) throw InputError("--threads must be >= 0 (0 = all cores)");
+  for (const std::string& f : args.flags)  // a mistyped mode must not fall back to linear skinning silently
+    if (f != "--preserve-volume" && std::find(flags.begin(), flags.end(), f) == flags.end())
+      throw InputError(command + ": unknown option '" + f + "'");
+  b.options.preserveVolume = std::find(args.flags.begin(), args.flags.end(), "--preserve-volume") != args.flags.end();
+  if (args.options.count("--dq-scale")) {
+    const std::string mode = args.options.at("--dq-scale");
+    if (!b.options.preserveVolume) throw InputError(command + ": --dq-scale needs --preserve-volume");
+    if (mode == "blended")
+      b.options.dualQuatScale = DualQuatScale::Blended;
+    else if (mode != "pivot")
+      throw InputError("--dq-scale must be pivot (Blender 4.x/5.x) or blended (Blender 3.x), got '" + mode + "'");
+  }
+  if (args.options.count("--dominance") && !args.options.count("--muscles"))
+    throw InputError(command + ": --dominance needs --muscles");
+  b.character = loadArgCharacter(args, command);
+  const Character& c = b.character;
+  SkinWeights weights = c.weights;
+  if (args.options.count("--muscles")) {
+    b.rig = std::make_unique<MuscleRig>(c.skeleton, readMusclesJson(args.options.at("--muscles")));
+    HybridWeightOptions ho;
+    ho.dominance = numberOption(args, "--dominance", ho.dominance);
+    weights = computeHybridWeights(c.mesh, c.weights, *b.rig, ho);
+  }
+  const int numJoints = c.skeleton.numBones() + (b.rig ? b.rig->numJoints() : 0);
+  if (b.options.preserveVolume) {
+    if (b.rig) {
+      b.options.jointRest = combinedRestMatrices(c.skeleton, *b.rig);
+    } else {
+      for (const auto& bone : c.skeleton.bones) b.options.jointRest.push_back(bone.rest);
+    }
+  }
+  b.skinner = std::make_shared<Skinner>(c.mesh.vertices, weights, numJoints, b.options);
+  return b;
+}
+
 // Skin every frame of the pose file: .obj takes one pose, .pc2 takes the whole sequence.
 int cmdDeform(const Args& args) {
   if (args.positional.size() != 1) throw InputError("deform needs exactly one CHARACTER file");
@@ -299,49 +358,25 @@ int cmdDeform(const Args& args) {
   const std::string out = args.options.at("--output");
   const bool pc2 = endsWith(out, ".pc2");
   if (!pc2 && !endsWith(out, ".obj")) throw InputError("deform: -o must end in .obj or .pc2, got '" + out + "'");
-  const Character c = loadArgCharacter(args, "deform");
+  const std::string method = args.options.count("--method") ? args.options.at("--method") : std::string("eq3");
+  if (method != "eq3" && method != "anchored")
+    throw InputError("deform: --method must be eq3 or anchored, got '" + method + "'");
+  if (method == "anchored") {
+    const Character c = loadArgCharacter(args, "deform");
+    const PoseSequence poses = readPoseJson(args.options.at("--pose"), c.skeleton);
+    if (!pc2 && poses.frames.size() != 1)
+      throw InputError("deform: the pose file has " + std::to_string(poses.frames.size()) +
+                       " frames; write them to a .pc2 (an .obj takes one pose)");
+    return deformAnchored(args, c, poses, out, pc2);
+  }
+  if (args.options.count("--relax-iterations")) throw InputError("deform: --relax-iterations is for --method anchored");
+  const BoundSkin b = bindFromArgs(args, "deform", {});
+  const Character& c = b.character;
   const PoseSequence poses = readPoseJson(args.options.at("--pose"), c.skeleton);
   if (!pc2 && poses.frames.size() != 1)
     throw InputError("deform: the pose file has " + std::to_string(poses.frames.size()) +
                      " frames; write them to a .pc2 (an .obj takes one pose)");
-  const std::string method = args.options.count("--method") ? args.options.at("--method") : std::string("eq3");
-  if (method == "anchored") return deformAnchored(args, c, poses, out, pc2);
-  if (method != "eq3") throw InputError("deform: --method must be eq3 or anchored, got '" + method + "'");
-  if (args.options.count("--relax-iterations")) throw InputError("deform: --relax-iterations is for --method anchored");
-  SkinnerOptions so;
-  so.threads = static_cast<int>(numberOption(args, "--threads", 0));
-  if (so.threads < 0) throw InputError("--threads must be >= 0 (0 = all cores)");
-  for (const std::string& f : args.flags)  // a mistyped mode must not fall back to linear skinning silently
-    if (f != "--preserve-volume") throw InputError("deform: unknown option '" + f + "'");
-  so.preserveVolume = !args.flags.empty();
-  if (args.options.count("--dq-scale")) {
-    const std::string mode = args.options.at("--dq-scale");
-    if (!so.preserveVolume) throw InputError("deform: --dq-scale needs --preserve-volume");
-    if (mode == "blended")
-      so.dualQuatScale = DualQuatScale::Blended;
-    else if (mode != "pivot")
-      throw InputError("--dq-scale must be pivot (Blender 4.x/5.x) or blended (Blender 3.x), got '" + mode + "'");
-  }
-  // With muscles: combined weights over bones + muscle joints (Equation 3); without: plain LBS.
-  std::unique_ptr<MuscleRig> rig;
-  SkinWeights weights = c.weights;
-  if (args.options.count("--muscles")) {
-    rig = std::make_unique<MuscleRig>(c.skeleton, readMusclesJson(args.options.at("--muscles")));
-    HybridWeightOptions ho;
-    ho.dominance = numberOption(args, "--dominance", ho.dominance);
-    weights = computeHybridWeights(c.mesh, c.weights, *rig, ho);
-  } else if (args.options.count("--dominance")) {
-    throw InputError("deform: --dominance needs --muscles");
-  }
-  const int numJoints = c.skeleton.numBones() + (rig ? rig->numJoints() : 0);
-  if (so.preserveVolume) {
-    if (rig) {
-      so.jointRest = combinedRestMatrices(c.skeleton, *rig);
-    } else {
-      for (const auto& b : c.skeleton.bones) so.jointRest.push_back(b.rest);
-    }
-  }
-  const Skinner skinner(c.mesh.vertices, weights, numJoints, so);
+  const MuscleRig* rig = b.rig.get();
   MuscleRigState state;
   if (rig) state = rig->makeState();
   std::vector<Mat4> transforms;
@@ -358,17 +393,17 @@ int cmdDeform(const Args& args) {
     PointsF frame;
     for (const Pose& pose : poses.frames) {
       transformsFor(pose);
-      skinner.deform(transforms, frame);
+      b.skinner->deform(transforms, frame);
       writer.writeFrame(frame);
     }
     writer.close();
   } else {
     Points positions;
     transformsFor(poses.frames[0]);
-    skinner.deform(transforms, positions);
+    b.skinner->deform(transforms, positions);
     writeObj(out, positions, c.mesh.triangles);
   }
-  const char* mode = so.preserveVolume ? ", preserve volume" : "";
+  const char* mode = b.options.preserveVolume ? ", preserve volume" : "";
   if (rig)
     std::printf("deformed %s (%d vertices, %d bones + %d muscle joints of %d muscles%s): %zu frame(s) -> %s\n",
                 c.name.c_str(), c.mesh.numVertices(), c.skeleton.numBones(), rig->numJoints(), rig->numMuscles(),
@@ -376,6 +411,80 @@ int cmdDeform(const Args& args) {
   else
     std::printf("deformed %s (%d vertices, %d bones, skeleton weights only%s): %zu frame(s) -> %s\n",
                 c.name.c_str(), c.mesh.numVertices(), c.skeleton.numBones(), mode, poses.frames.size(), out.c_str());
+  return 0;
+}
+
+// "A-B" (or "A") -> [A, B].
+void frameRange(const std::string& text, int& first, int& last) {
+  const size_t dash = text.find('-', 1);
+  try {
+    size_t used = 0;
+    first = std::stoi(text.substr(0, dash), &used);
+    if (used != (dash == std::string::npos ? text.size() : dash)) throw std::invalid_argument(text);
+    last = first;
+    if (dash != std::string::npos) {
+      const std::string rest = text.substr(dash + 1);
+      last = std::stoi(rest, &used);
+      if (used != rest.size()) throw std::invalid_argument(text);
+    }
+  } catch (const std::exception&) {
+    throw InputError("--frames needs A-B (whole frames), got '" + text + "'");
+  }
+  if (last < first) throw InputError("--frames " + text + ": the last frame comes before the first");
+}
+
+// Simulate a pose sequence into a PC2 cache: skinning, jiggle, (skin solve), filter, sculpt; a chunk of the
+// frames with the state files that stitch chunks into one bake.
+int cmdSimulate(const Args& args) {
+  if (args.positional.size() != 1) throw InputError("simulate needs exactly one CHARACTER file");
+  if (!args.options.count("--pose")) throw InputError("simulate needs --pose SEQUENCE.json");
+  if (!args.options.count("--output")) throw InputError("simulate needs -o out.pc2");
+  const std::string out = args.options.at("--output");
+  if (!endsWith(out, ".pc2")) throw InputError("simulate: -o must end in .pc2, got '" + out + "'");
+  auto has = [&](const char* flag) { return std::find(args.flags.begin(), args.flags.end(), flag) != args.flags.end(); };
+  // The per-frame skin solve (collision against the muscles) plugs in at Simulation::setSkinSolve.
+  if (has("--skin-solve")) throw InputError("simulate: --skin-solve is not available in this build");
+  SimulationOptions so;
+  so.fps = numberOption(args, "--fps", so.fps);
+  if (!(so.fps > 0)) throw InputError("--fps must be > 0");
+  so.jiggle = has("--jiggle");
+  so.filter = has("--filter");
+  so.jiggleOptions.frequency = numberOption(args, "--jiggle-frequency", so.jiggleOptions.frequency);
+  so.jiggleOptions.dampingRatio = numberOption(args, "--jiggle-damping", so.jiggleOptions.dampingRatio);
+  so.jiggleOptions.amount = numberOption(args, "--jiggle-amount", so.jiggleOptions.amount);
+  if (!so.jiggle && (args.options.count("--jiggle-frequency") || args.options.count("--jiggle-damping") ||
+                     args.options.count("--jiggle-amount")))
+    throw InputError("simulate: the --jiggle-* settings need --jiggle");
+  if (so.jiggle && !args.options.count("--muscles")) throw InputError("simulate: --jiggle needs --muscles");
+  if (args.options.count("--sculpt-frame") && !args.options.count("--sculpt"))
+    throw InputError("simulate: --sculpt-frame needs --sculpt");
+  const BoundSkin b = bindFromArgs(args, "simulate", {"--jiggle", "--filter", "--skin-solve"});
+  const Character& c = b.character;
+  const PoseSequence poses = readPoseJson(args.options.at("--pose"), c.skeleton);
+  Simulation sim(c.mesh, c.skeleton, b.rig.get(), b.skinner, poses, so);
+  int first = sim.firstFrame(), last = sim.lastFrame();
+  if (args.options.count("--frames")) frameRange(args.options.at("--frames"), first, last);
+  if (args.options.count("--sculpt")) {
+    const std::string path = args.options.at("--sculpt");
+    const Mesh sculpt = readObjMesh(path);
+    if (sculpt.numVertices() != c.mesh.numVertices())
+      throw InputError("simulate: the sculpt " + path + " has " + std::to_string(sculpt.numVertices()) +
+                       " vertices, the character " + std::to_string(c.mesh.numVertices()) +
+                       " (write it with the character's vertex order, e.g. from `myoskin deform -o frame.obj`)");
+    sim.setSculpt(sculpt.vertices, static_cast<int>(numberOption(args, "--sculpt-frame", sim.firstFrame())));
+  }
+  std::unique_ptr<SimulationState> stateIn;
+  if (args.options.count("--state-in"))
+    stateIn = std::make_unique<SimulationState>(readSimulationState(args.options.at("--state-in")));
+  PC2Writer writer(out, c.mesh.numVertices(), static_cast<float>(first), 1.0f);
+  const SimulationState end =
+      sim.bake(first, last, [&](int, const PointsF& frame) { writer.writeFrame(frame); }, stateIn.get());
+  writer.close();
+  if (args.options.count("--state-out")) writeSimulationState(args.options.at("--state-out"), end);
+  std::printf("simulated %s (%d vertices, %d muscles%s%s%s, %g fps): frames %d-%d -> %s\n", c.name.c_str(),
+              c.mesh.numVertices(), b.rig ? b.rig->numMuscles() : 0, so.jiggle ? ", jiggle" : "",
+              so.filter ? ", filter" : "", args.options.count("--sculpt") ? ", sculpt" : "", so.fps, first, last,
+              out.c_str());
   return 0;
 }
 
@@ -399,6 +508,11 @@ int main(int argc, char** argv) {
       return cmdDeform(
           parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh", "--dq-scale",
                                    "--method", "--relax-iterations"}));
+    if (command == "simulate")
+      return cmdSimulate(parse(argc, argv, 2,
+                               {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh",
+                                "--dq-scale", "--fps", "--frames", "--state-in", "--state-out", "--sculpt",
+                                "--sculpt-frame", "--jiggle-frequency", "--jiggle-damping", "--jiggle-amount"}));
     std::fprintf(stderr, "myoskin: error: unknown command '%s' (try myoskin --help)\n", command.c_str());
     return 2;
   } catch (const InputError& e) {

@@ -22,7 +22,9 @@ void bindGenerate(py::module_& m);
 void bindExtraction(py::module_& m);
 void bindDeformation(py::module_& m);
 void bindSkinning(py::module_& m);
+void bindCorrectives(py::module_& m);
 void bindAnchored(py::module_& m);
+void bindDynamics(py::module_& m);
 
 // The _core.MuscleRig object (bind_deformation.cpp; also taken by bind_skinning.cpp): the rig plus its
 // evaluation state, reused across evaluate() calls (no per-frame allocation in the core); the mutex

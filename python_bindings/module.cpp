@@ -52,5 +52,7 @@ PYBIND11_MODULE(_core, m) {
   myoskin::python::bindExtraction(m);
   myoskin::python::bindDeformation(m);
   myoskin::python::bindSkinning(m);
+  myoskin::python::bindCorrectives(m);
   myoskin::python::bindAnchored(m);
+  myoskin::python::bindDynamics(m);
 }

@@ -46,10 +46,19 @@ def parse_args(argv):
                    help="bone role overrides for extract, {\"bone\": \"role\"} (roles: ignore, limb, shoulder, neck, "
                         "spine, pelvis; the CLI's format); they replace the overrides stored in the file")
     p.add_argument("--bind", action="store_true", help="bind the muscles to the armature")
+    p.add_argument("--deformer", choices=("joints", "anchored"), default=None,
+                   help="with --bind: muscle joints (Equation 3, the default) or the anchored skin")
     p.add_argument("--max-influences", type=int, default=0, metavar="N",
                    help="bones and muscle joints per vertex after --bind (default: the rig's setting, 8; 4 for game engines)")
     p.add_argument("--bake", metavar="A-B", help="bake the muscle joints to keyframes over frames A-B")
+    p.add_argument("--jiggle", action="store_true",
+                   help="with --bake: simulate the muscles' jiggle into the baked keys (the rig's Jiggle settings)")
+    p.add_argument("--jiggle-start", type=int, default=None, metavar="F",
+                   help="with --jiggle: the frame the simulation starts from (a farm chunk --bake A-B of a longer "
+                        "bake from F: keyed over A-B, simulated from F, so chunks join exactly)")
     p.add_argument("--pc2", metavar="FILE", help="bake the skin to a PC2 cache (needs --bind and --bake)")
+    p.add_argument("--skin-solve", action="store_true",
+                   help="with --pc2: solve the skin against the posed muscles every frame (it slides over them)")
     p.add_argument("--gltf", metavar="FILE", help="export skin + armature + helper bones to glTF")
     p.add_argument("-o", "--output", metavar="FILE.blend", help="save the result")
     return p.parse_args(argv)
@@ -254,6 +263,8 @@ def main(argv):
         if not len(state.muscles):
             log(f"found no muscles: {done.get('diagnosis') or 'no significant relief'}")
     if args.bind:
+        if args.deformer:
+            state.deformer = args.deformer.upper()
         if args.max_influences:
             if not 1 <= args.max_influences <= 16:
                 fail(f"--max-influences must be in 1..16, got {args.max_influences}")
@@ -261,14 +272,20 @@ def main(argv):
         run_op(bpy.ops.myoskin.bind)
         log(f"bound: {len(state.muscles)} muscles to {', '.join(s.object.name for s in state.skins if s.object)}")
     frames = parse_range(args.bake) if args.bake else None
+    if args.jiggle and not frames:
+        fail("--jiggle needs --bake A-B")
     if frames:
-        run_op(bpy.ops.myoskin.bake_action, frame_start=frames[0], frame_end=frames[1])
-        log(f"baked muscle joints over frames {frames[0]}-{frames[1]}")
+        if args.jiggle:
+            state.jiggle = True
+        extra = {"jiggle_start": args.jiggle_start} if args.jiggle_start is not None else {}
+        run_op(bpy.ops.myoskin.bake_action, frame_start=frames[0], frame_end=frames[1], jiggle=bool(state.jiggle),
+               **extra)
+        log(f"baked muscle joints{' with jiggle' if state.jiggle else ''} over frames {frames[0]}-{frames[1]}")
     if args.pc2:
         if not frames:
             fail("--pc2 needs --bake A-B for its frame range")
         run_op(bpy.ops.myoskin.bake_pc2, filepath=os.path.abspath(args.pc2), frame_start=frames[0],
-               frame_end=frames[1])
+               frame_end=frames[1], skin_solve=args.skin_solve)
         written = addon("operators.rig").pc2_paths(os.path.abspath(args.pc2), addon("binding").bound_skins(arm))
         log(f"wrote {', '.join(written)}")
     if args.gltf:

@@ -10,7 +10,7 @@ import json
 import bpy
 import numpy as np
 
-from . import blender_io, core_loader, muscle_io, rig_io, runtime
+from . import blender_io, core_loader, core_skin, muscle_io, rig_io, runtime
 from .state import rig_skins, rig_state, set_rig_skins
 
 # ------------------------------------------------------------------------------------------------
@@ -170,6 +170,10 @@ def bind(context, skins, arm):
         else:
             preserve_volume_before[skin.name] = bool(mod.use_deform_preserve_volume)
         mod.use_deform_preserve_volume = state.preserve_volume
+    core_skin_was = {}
+    if state.deformer == 'ANCHORED':  # the core moves these meshes (live.py); their Armature modifiers rest
+        for skin in skins:
+            core_skin_was[skin.name] = core_skin.attach(skin, armature_modifier(skin, arm))
     surfaces = {m.name: item.surface.name for item in rig_state(arm).muscles
                 for m in muscles if m.name == item.name and item.surface is not None}
     record = {
@@ -182,6 +186,7 @@ def bind(context, skins, arm):
         "bone_rest": np.asarray(character.bone_rest).tolist(),
         "joint_names": list(rig.joint_names), "muscles": core.muscles_to_json(muscles),
         "surfaces": [surfaces.get(m.name, "") for m in muscles],
+        "deformer": "anchored" if state.deformer == 'ANCHORED' else "joints", "core_skin_was": core_skin_was,
     }
     write_bind_record(arm, record)
     set_rig_skins(arm, skins)
@@ -232,6 +237,35 @@ def skinner_for(skin, arm, live_rig, rest, joints, weights):
     return core.Skinner(rest, joints, weights, count)
 
 
+PC2_MODIFIER = "Myoskin PC2"  # the Mesh Cache modifiers Bake PC2 adds
+MUTED_KEY = "myoskin_muted_armature"  # ID property on a mesh: its Armature modifier's visibility before a cache
+
+
+def mute_armature_for_cache(skin, arm):
+    """A baked PC2 now plays the skin: switch its Armature modifier off (its result is overwritten anyway),
+    remembering the visibility it had (the first time) for Unbind."""
+    mod = armature_modifier(skin, arm)
+    if mod is None:
+        return
+    if MUTED_KEY not in skin:
+        skin[MUTED_KEY] = {"show_viewport": bool(mod.show_viewport), "show_render": bool(mod.show_render)}
+    mod.show_viewport = mod.show_render = False
+
+
+def remove_caches(skin, arm):
+    """Unbind: remove the PC2 modifiers Bake added and give the Armature modifier its visibility back."""
+    for mod in [m for m in skin.modifiers if m.type == 'MESH_CACHE' and m.name.startswith(PC2_MODIFIER)]:
+        skin.modifiers.remove(mod)
+    was = skin.get(MUTED_KEY)
+    if was is None:
+        return
+    mod = armature_modifier(skin, arm)
+    if mod is not None:
+        mod.show_viewport = bool(was.get("show_viewport", True))
+        mod.show_render = bool(was.get("show_render", True))
+    del skin[MUTED_KEY]
+
+
 def bound_skins(arm):
     """The meshes a bind changed: those named in the bind record, the character's recorded meshes, and any
     mesh of the armature holding a weight backup (e.g. renamed since), in that order, each once."""
@@ -265,6 +299,14 @@ def unbind(arm):
     added = added if isinstance(added, list) else []
     before = record.get("preserve_volume_before", {})
     before = before if isinstance(before, dict) else {}
+    for skin in skins:
+        remove_caches(skin, arm)
+    was = record.get("core_skin_was")
+    was = was if isinstance(was, dict) else {}
+    for skin in skins:
+        if core_skin.modifier(skin) is not None or skin.name in was:
+            entry = was.get(skin.name)
+            core_skin.detach(skin, armature_modifier(skin, arm), entry if isinstance(entry, dict) else {})
     for skin in skins:
         mod = armature_modifier(skin, arm)
         if mod is None:

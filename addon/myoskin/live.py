@@ -30,7 +30,7 @@ import bpy
 import numpy as np
 from bpy.app.handlers import persistent
 
-from . import anim_compat, binding, core_loader, muscle_io, rig_io, runtime
+from . import anim_compat, binding, blender_io, core_loader, core_skin, muscle_io, rig_io, runtime
 
 stats = {"predicted": 0, "written": 0}  # frames written from the F-curve prediction / from the evaluated pose
 
@@ -49,6 +49,16 @@ class LiveRig:
         if list(self.rig.joint_names) != self.joint_names:
             raise ValueError(f"'{arm_obj.name}': the bind record's joints do not match its muscles: bind again")
         self.surface_names = record.get("surfaces", [])
+        # The anchored deformer (bind record "deformer": "anchored"): per bound mesh (name, core_skin.MeshFrame,
+        # core AnchoredSkin built from the mesh at rest in armature space with its skeleton bones' weights).
+        self.anchored = []
+        if record.get("deformer") == "anchored":
+            for name in record.get("skins") or [record.get("skin")]:
+                obj = bpy.data.objects.get(name) if isinstance(name, str) else None
+                if obj is None or obj.type != 'MESH':
+                    raise ValueError(f"the anchored skin '{name}' is missing: bind again")
+                anchored = core.AnchoredSkin(blender_io.character_from_blender(obj, arm_obj), muscles)
+                self.anchored.append((name, core_skin.MeshFrame(obj, arm_obj), anchored))
         self.last_pose = None  # the skeleton pose the joints were last written for
         self.last_with_surfaces = False  # whether the muscle surfaces were written with them
         self.last_surface_pose = None  # baked rigs: the pose the muscle surfaces were last written for
@@ -164,6 +174,8 @@ def write_pose(arm_obj, live, pose, with_surfaces):
                                 parent_matrices=(live.bone_names, pose))
     if with_surfaces:
         write_surfaces(arm_obj, live, result["surfaces"])
+    if live.anchored:
+        write_anchored(live, pose)
     live.last_pose = pose
     live.last_with_surfaces = with_surfaces
 
@@ -182,6 +194,17 @@ def write_surfaces(arm_obj, live, surfaces):
         obj.data.update()
 
 
+def write_anchored(live, pose):
+    """The anchored deformer: evaluate each mesh's AnchoredSkin for a skeleton pose (#B by 4 by 4) and write
+    its offsets from rest for the Core Skin modifier (a mesh in Edit Mode or with another vertex count since
+    the bind is skipped)."""
+    for name, frame, anchored in live.anchored:
+        obj = bpy.data.objects.get(name)
+        if obj is None or obj.type != 'MESH' or obj.mode == 'EDIT' or len(obj.data.vertices) != len(frame.rest):
+            continue
+        core_skin.write_offsets(obj, frame.offsets(anchored.evaluate(pose)))
+
+
 def split_bound_armatures(scene):
     """(bound armatures with live update on, bound armatures playing their baked Action), in one pass."""
     live_on, baked = [], []
@@ -195,14 +218,18 @@ def split_bound_armatures(scene):
 
 def update_surfaces(arm_obj, depsgraph=None):
     """Live update off: the baked Action moves the joints natively; the muscle surfaces (mesh objects that
-    are not skinned) follow the evaluated skeleton here. Returns True when it wrote them."""
-    if not muscles_visible(arm_obj):
-        return False
+    are not skinned) and anchored skins follow the evaluated skeleton here. Returns True when it wrote."""
+    visible = muscles_visible(arm_obj)
     live = live_rig(arm_obj)
+    if not visible and not live.anchored:
+        return False
     pose = evaluated_pose(arm_obj, live, depsgraph)
     if same_pose(pose, live.last_surface_pose):
         return False
-    write_surfaces(arm_obj, live, live.rig.evaluate(pose, with_surfaces=True)["surfaces"])
+    if visible:
+        write_surfaces(arm_obj, live, live.rig.evaluate(pose, with_surfaces=True)["surfaces"])
+    if live.anchored:
+        write_anchored(live, pose)
     live.last_surface_pose = pose
     return True
 

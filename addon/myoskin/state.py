@@ -128,6 +128,12 @@ class MyoskinMuscle(bpy.types.PropertyGroup):
     insertion_locator: PointerProperty(name="Insertion Locator", type=bpy.types.Object)
     wrap_locator: PointerProperty(name="Wrap Display", type=bpy.types.Object)
     surface: PointerProperty(name="Surface", type=bpy.types.Object)
+    jiggle_frequency: FloatProperty(
+        name="Jiggle Frequency", default=0.0, min=0.0, soft_max=20.0, unit='NONE',
+        description="This muscle's natural frequency in Hz when jiggling (0 = the rig's, scaled by muscle size)")
+    jiggle_damping: FloatProperty(
+        name="Jiggle Damping", default=-1.0, min=-1.0, max=4.0,
+        description="This muscle's damping as a fraction of critical (-1 = the rig's)")
 
 
 BONE_ROLES = (
@@ -180,6 +186,28 @@ class MyoskinRigState(bpy.types.PropertyGroup):
                     "the muscle joints together, so bent joints keep their volume; Bind sets it on the "
                     "character's Armature modifiers (at once when bound) and Bake PC2 computes the same mode "
                     "in the core. Off: linear blending, as the paper")
+    deformer: EnumProperty(
+        name="Deformer", default='JOINTS',
+        items=(('JOINTS', "Muscle Joints", "The paper's Equation 3: the muscle joints are deform bones blended with "
+                "the skeleton's weights by the Armature modifier (plays without the add-on once baked)"),
+               ('ANCHORED', "Anchored Skin", "Each skin vertex anchored to the nearest muscle ellipsoid, bone "
+                "capsule or joint sphere (Schneider & Wilhelms; Arabaci), computed by the core every frame and "
+                "shown through a Geometry Nodes modifier; the Armature modifier is switched off while bound. "
+                "Needs the add-on to play; Bake PC2 for farms")),
+        description="How Bind deforms the skin (takes effect at the next Bind)")
+    jiggle: BoolProperty(name="Jiggle", default=False,
+                         description="Bake Muscle Action simulates jiggle: each muscle's mass on a damped spring "
+                                     "behind its bones (Gray & Hutchinson), baked into the muscle joints' keys")
+    skin_solve: BoolProperty(name="Skin Solve", default=False,
+                             description="Bake PC2 relaxes the skin every frame and pushes it out of the posed muscles "
+                                         "so it slides over them (Gray & Hutchinson's skin solve)")
+    jiggle_frequency: FloatProperty(name="Frequency", default=5.0, min=0.05, soft_max=20.0,
+                                    description="Natural frequency in Hz of a muscle of the median size (smaller "
+                                                "muscles are stiffer)")
+    jiggle_damping: FloatProperty(name="Damping", default=0.3, min=0.0, max=4.0,
+                                  description="Damping as a fraction of critical (1 = no overshoot)")
+    jiggle_amount: FloatProperty(name="Amount", default=1.0, min=0.0, soft_max=3.0,
+                                 description="Multiplies every muscle's jiggle (0 = none)")
     max_influences: IntProperty(name="Max Influences", default=8, min=1, max=16,
                                 description="Bones and muscle joints per skin vertex after Bind (the largest "
                                             "are kept and renormalised; 4 is what game engines take)")

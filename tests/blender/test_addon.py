@@ -112,6 +112,14 @@ def test_bl_info_and_manifest():
 
 def test_preferences_defaults():
     prefs = bpy.context.preferences.addons[ADDON].preferences
+    # the registered preferences start where the fallback for scripts without the add-on (_Defaults) is, so both
+    # extract and rig alike (this can fail: the two are written separately)
+    fallback = addon_module("preferences")._Defaults
+    names = [n for n in vars(fallback) if not n.startswith("_")]
+    assert len(names) >= 5, names
+    for name in names:
+        assert abs(getattr(prefs, name) - getattr(fallback, name)) < 1e-6, (name, getattr(prefs, name))
+    # the documented values
     assert prefs.section_spacing == 0.0  # automatic, as the core's default
     assert prefs.joints_per_muscle == 4 and abs(prefs.bulge_factor - 1.0) < 1e-9 and prefs.min_sections == 3
     assert addon_module("preferences").get_preferences().joints_per_muscle == 4
@@ -232,6 +240,7 @@ def test_add_synthetic_arm_creates_rig():
     assert not mods[0].use_deform_preserve_volume and not mods[0].use_bone_envelopes and mods[0].use_vertex_groups
     for bone in arm_obj.data.bones:
         assert bone.use_deform and bone.bbone_segments == 1 and not bone.use_envelope_multiply
+    assert len(character.bone_parents) == len(character.bone_names) > 0
     for i, p in enumerate(character.bone_parents):
         parent = arm_obj.data.bones[i].parent
         assert (parent.name if parent else None) == (character.bone_names[p] if p >= 0 else None)
@@ -250,6 +259,7 @@ def test_rest_pose_reproduces_core_vertices():
 def test_bone_rest_matrices_match_core():
     arm_obj, _mesh_obj, character = add_arm()
     rest = np.asarray(character.bone_rest)
+    assert len(character.bone_names) == len(rest) > 0
     for i, name in enumerate(character.bone_names):
         bone = arm_obj.data.bones[name]
         actual = np.array([list(r) for r in bone.matrix_local])
@@ -461,8 +471,9 @@ def test_extracted_muscles_become_meshes_on_their_bones():
     from_blender = blender_io.character_from_blender(mesh_obj, arm_obj)
     muscles, report = core().extract_muscles(from_blender)
     direct, _ = core().extract_muscles(character)
-    assert len(muscles) == len(direct) >= 3, (len(muscles), len(direct))
-    assert core().measure_extraction(muscles, truth)["matched"] >= 3
+    # the core tiers' figure on seeds 0-3 (test_extraction): all six true muscles matched, nothing else
+    assert len(muscles) == len(direct) == 6, (len(muscles), len(direct))
+    assert core().measure_extraction(muscles, truth)["matched"] == 6
     objects = blender_io.muscles_to_meshes(muscles, armature_obj=arm_obj)
     assert len(objects) == len(muscles)
     for obj, m in zip(objects, muscles):

@@ -79,7 +79,7 @@ REPORT = re.compile(r"^(Info|Warning|Error): (.*)$", re.M)
 def assert_clear(message, *expected):
     assert message and message.strip(), "empty message"
     assert not RAW.search(message), f"not a clear message: {message!r}"
-    for part in expected:
+    for part in expected:  # hygiene: a message may be checked for clarity alone
         assert part in message, f"{part!r} not in {message!r}"
 
 
@@ -104,7 +104,7 @@ def call(op, **kwargs):
     else:
         reports = [m for _level, m in REPORT.findall(out[0])]
     message = "; ".join(r.strip() for r in reports if r.strip())
-    for r in reports:
+    for r in reports:  # hygiene: a finished operator need not report anything
         assert_clear(r)
     return status, message
 
@@ -150,7 +150,7 @@ def assert_unchanged(before, *objs):
     after = snapshot(*objs)
     assert after.keys() == before.keys(), (after.keys(), before.keys())
     for name in before:
-        for key in before[name]:
+        for key in before[name]:  # hygiene: every snapshot entry holds at least the name and matrix
             assert after[name][key] == before[name][key], f"{name}: {key} changed"
 
 

@@ -164,7 +164,7 @@ def test_batch_glb_input_and_the_cli_give_the_same_muscles():
     tails from the joints (tailsFromJoints), so how Blender's importer or the CLI's loader guessed tails does not
     matter for which muscles are found."""
     arm, ours, theirs, radius = cli_and_batch_muscles(MUSCULAR, bind=True)
-    assert arm.myoskin.bound and len(arm.myoskin.muscles) >= 5
+    assert arm.myoskin.bound and len(arm.myoskin.muscles) >= 12  # the core tiers' floor on this body (measured 20)
     limbs = [n for n in theirs if not n.startswith("spine")]
     assert len(limbs) >= 10, f"the CLI found only {limbs} on the limbs and shoulders"
     assert_same_muscles("makehuman_muscular_male", ours, theirs, radius)

@@ -184,6 +184,8 @@ def test_biceps_bulges_on_flexion():
     outward = np.einsum("ij,ij->i", bound - lbs, normals)[belly]
     print(f"  bulge over the belly of {muscle.name} (stretch {stretch[shortened]:.3f}): "
           f"max {outward.max() * 1000:.2f} mm, median {np.median(outward) * 1000:.2f} mm")
+    # guards the bulge itself (a rig that only followed the skeleton gives 0 here); measured on blender 3.4: 14.5 mm
+    # max, 9.3 mm median at stretch 0.68
     assert outward.max() > 0.002 and np.median(outward) > 0.0005
 
 
@@ -259,6 +261,7 @@ def test_muscle_surfaces_follow_the_pose():
     pose = live.evaluated_pose(arm, rig, bpy.context.evaluated_depsgraph_get())
     surfaces = rig.rig.evaluate(pose, with_surfaces=True)["surfaces"]
     enabled = [m for m in state.muscles if m.enabled]
+    assert len(enabled) == len(surfaces) > 0
     for item, expected in zip(enabled, surfaces):
         co = np.empty(3 * len(item.surface.data.vertices), dtype=np.float32)
         item.surface.data.vertices.foreach_get("co", co)
@@ -358,6 +361,7 @@ def test_two_bound_characters_in_one_scene():
     bpy.context.view_layer.update()
     for arm, skin in ((arm1, skin1), (arm2, skin2)):
         assert np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, arm.myoskin)).max() < 1e-5
+        assert len(arm.myoskin.muscles) > 0
         for item in arm.myoskin.muscles:
             assert item.surface.parent == arm and item.surface.name in arm.myoskin.collection.objects
 
@@ -441,6 +445,7 @@ def test_baked_action_moves_the_muscle_surfaces_too():
         pose = live.evaluated_pose(arm, rig, bpy.context.evaluated_depsgraph_get())
         expected = rig.rig.evaluate(pose, with_surfaces=True)["surfaces"]
         got = surfaces_now()
+        assert len(enabled) == len(got) == len(expected) > 0
         for item, g, e in zip(enabled, got, expected):
             assert np.abs(g - e).max() < 1e-5, (frame, item.name)
         seen.append(got)
@@ -553,6 +558,28 @@ def test_pc2_bake_equals_blender():
         bpy.context.scene.frame_set(frame)
         err = np.abs(module("blender_io").evaluated_vertices(skin) - cache["frames"][k]).max()
         assert err < 1e-5, f"frame {frame}: PC2 differs from Blender by {err:.3g} m"
+
+
+def test_pc2_modifier_replaces_the_armature_until_unbind():
+    arm, skin, state, original = bound_arm()
+    key_elbow(arm, ((1, 0.0), (3, 90.0)))
+    live_skin = []
+    for frame in (1, 2, 3):
+        bpy.context.scene.frame_set(frame)
+        live_skin.append(module("blender_io").evaluated_vertices(skin))
+    path = os.path.join(TMP, "cached.pc2")
+    assert bpy.ops.myoskin.bake_pc2(filepath=path, frame_start=1, frame_end=3, add_modifier=True) == {'FINISHED'}
+    armature = module("binding").armature_modifier(skin, arm)
+    assert not armature.show_viewport and not armature.show_render
+    assert [m.type for m in skin.modifiers].count('MESH_CACHE') == 1
+    for k, frame in enumerate((1, 2, 3)):
+        bpy.context.scene.frame_set(frame)
+        err = np.abs(module("blender_io").evaluated_vertices(skin) - live_skin[k]).max()
+        assert err < 1e-5, f"frame {frame}: the cache plays {err:.3g} m away from the live skin"
+    assert bpy.ops.myoskin.unbind() == {'FINISHED'}
+    assert armature.show_viewport and armature.show_render
+    assert not any(m.type == 'MESH_CACHE' for m in skin.modifiers)
+    assert weights_of(skin) == original
 
 
 # ------------------------------------------------------------------------------------------------
@@ -702,10 +729,12 @@ def test_makehuman_end_to_end():
     assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
     arm = module("blender_io").find_armature(skin)
     state = arm.myoskin
-    arms = [i for i, m in enumerate(state.muscles) if m.insertion_bone == "upperarm02.L"]
-    if not arms:
-        runner.skip("no left upper-arm muscle extracted")
-    # the extracted insertion sits on the upper arm: move it onto the forearm and snap it there
+    # the left biceps (found on this body by every tier: test_extraction's anatomical names); it used to be picked
+    # as "a muscle inserting on upperarm02.L", and skipped when none did, which it always did once the ends were
+    # carried across the elbow (ExtractionOptions::ends.spanCarry): the test ran nothing
+    arms = [i for i, m in enumerate(state.muscles) if m.name == "biceps.L"]
+    assert arms, [m.name for m in state.muscles]
+    # move the insertion a fifth of the way down the forearm and snap it there
     state.active_index = arms[0]
     item = state.muscles[arms[0]]
     fore = arm.data.bones["lowerarm01.L"]
@@ -714,6 +743,13 @@ def test_makehuman_end_to_end():
     bpy.context.view_layer.update()
     assert bpy.ops.myoskin.snap_locator(end='insertion') == {'FINISHED'}
     assert item.insertion_bone == "lowerarm01.L", item.insertion_bone
+    # the reference in the mode Bind sets (state.preserve_volume): Blender's float32 dual quaternions move this
+    # body's plain skeleton skin 2.3e-6 m at rest by themselves (a toe, 0.85 m from the origin); the bind's own
+    # change measured against that is 6.6e-7 m
+    for mod in skin.modifiers:
+        if mod.type == 'ARMATURE':
+            mod.use_deform_preserve_volume = state.preserve_volume
+    bpy.context.view_layer.update()
     rest = evaluated(skin)
     assert bpy.ops.myoskin.bind() == {'FINISHED'}
     err = np.abs(evaluated(skin) - rest).max()
@@ -738,6 +774,7 @@ def test_makehuman_end_to_end():
     stretch, outward, sign = best
     print(f"  MakeHuman {item.name}: stretch {stretch:.3f} on flexion, belly bulge max "
           f"{outward.max() * 1000:.2f} mm, median {np.median(outward) * 1000:.2f} mm")
+    # the biceps shortens and lifts its belly (measured on blender 3.4: stretch 0.841, 4.38 mm max, 3.11 mm median)
     assert stretch < 0.97 and outward.max() > 0.002 and np.median(outward) > 0.0
     # save / reload: identical coordinates
     arm.pose.bones["lowerarm01.L"].rotation_euler = (sign * np.radians(80.0), 0.0, 0.0)

@@ -66,7 +66,7 @@ def test_extract_on_generated_arm():
     assert len(state.muscles) == len(direct) >= 4, (len(state.muscles), len(direct))
     _c, truth = core().make_synthetic_arm(seed=1)
     found = module("muscle_io").state_to_core(arm)
-    assert core().measure_extraction(found, truth)["matched"] >= 4
+    assert core().measure_extraction(found, truth)["matched"] == 6  # as the core tiers (test_extraction, seeds 0-3)
     coll = state.collection
     assert coll is not None and coll.name.startswith("Muscles")
     assert coll in list(bpy.context.scene.collection.children)
@@ -162,7 +162,7 @@ def test_extract_on_makehuman_glb():
     state = arm.myoskin
     loaded = core().load_character(path)
     direct, _ = core().extract_muscles(loaded)
-    assert len(state.muscles) >= 5, len(state.muscles)
+    assert len(state.muscles) >= 12, len(state.muscles)  # the core tiers' floor on this body (measured 20)
     assert abs(len(state.muscles) - len(direct)) <= 2, (len(state.muscles), len(direct))
     bones = arm.data.bones
     for item in state.muscles:
@@ -170,6 +170,7 @@ def test_extract_on_makehuman_glb():
         assert len(item.surface.data.polygons) > 0
     # mirror of a .L/.R muscle lands on the other side with flipped bone names
     sided = [i for i, m in enumerate(state.muscles) if bpy.utils.flip_name(m.origin_bone) != m.origin_bone]
+    assert sided, "the limbs' muscles have sided bones"
     if sided:
         state.active_index = sided[0]
         src = state.muscles[sided[0]]
@@ -301,6 +302,7 @@ def test_moving_a_locator_updates_the_muscle():
     assert np.abs(surface - before_surface).max() > 0.01
     # the pole vertex of the insertion cap is the insertion
     assert np.linalg.norm(surface - np.array(item.insertion_locator.location), axis=1).min() < 1e-6
+    assert others
     for m2, co in zip(list(state.muscles)[1:], others):
         assert np.array_equal(mesh_co(m2.surface), co)  # the other muscles did not change
     stored = json.loads(state.muscles_text.as_string())["muscles"][0]

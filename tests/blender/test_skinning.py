@@ -177,6 +177,7 @@ def check_extra_joint_rig(arm_obj, mesh_obj, character, poses):
     combined = list(character.bone_names) + jnames
     rig_io.write_combined_weights(mesh_obj, combined, joints, weights)
     errors = []
+    assert poses
     for i, rotations in enumerate(poses):
         set_pose(arm_obj, rotations)
         pose = rig_io.pose_bone_matrices(arm_obj, list(character.bone_names))
@@ -242,6 +243,7 @@ def check_muscle_rig(arm_obj, mesh_obj, character, muscles, poses):
     assert set(rig_io.muscle_bone_names(arm_obj)) == set(joint_names)
     bones = arm_obj.data.bones
     parent_index = np.asarray(rig.joint_parent_bone)
+    assert len(parent_index) == len(joint_names) > 0
     for n, p in zip(joint_names, parent_index):
         assert bones[n].parent.name == skeleton_names[p] and bones[n].use_deform
     combined = skeleton_names + joint_names
@@ -255,6 +257,7 @@ def check_muscle_rig(arm_obj, mesh_obj, character, muscles, poses):
               back_weights[back_joints >= 0])
     assert np.abs(dense - back).max() < 1e-6  # vertex groups hold the combined weights (float32)
     errors, anisotropy = [], 0.0
+    assert poses
     for rotations in poses:
         set_pose(arm_obj, rotations)
         pose = rig_io.pose_bone_matrices(arm_obj, skeleton_names)
@@ -279,7 +282,7 @@ def check_muscle_rig(arm_obj, mesh_obj, character, muscles, poses):
 def test_blender_equals_core_with_the_muscle_rig_on_the_arm():
     arm_obj, mesh_obj, character = synthetic_arm_in_blender()
     muscles, _report = core().extract_muscles(character)
-    assert len(muscles) >= 3
+    assert len(muscles) == 6  # seed 1's six muscles, as the core tiers find them
     check_muscle_rig(arm_obj, mesh_obj, character, muscles, [
         {"forearm": axis_angle((1, 0, 0), 70)},
         {"forearm": axis_angle((1, 0, 0), 140)},
@@ -291,7 +294,7 @@ def test_blender_equals_core_with_the_muscle_rig_on_the_arm():
 def test_blender_equals_core_with_the_muscle_rig_on_makehuman():
     arm_obj, mesh_obj, character = makehuman_in_blender()
     muscles, _report = core().extract_muscles(character)
-    assert len(muscles) >= 5, len(muscles)
+    assert len(muscles) >= 12, len(muscles)  # the core tiers' floor on this body (measured 20)
     names = list(character.bone_names)
     spanned = sorted({m.insertion_bone for m in muscles if m.insertion_bone != m.origin_bone} |
                      {m.origin_bone for m in muscles})

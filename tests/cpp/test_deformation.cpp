@@ -427,10 +427,14 @@ TEST(MuscleRig, BoneWrapFollowsTwistBothSides) {
     // would pass within a few millimetres of the axis).
     const Mat4 fa = armPose(0.0, side * 150 * kPi / 180).matrices[arm().find("forearm")];
     const Vec3 ax = fa.block<3, 1>(0, 1).normalized(), c = fa.block<3, 1>(0, 3);
+    int alongForearm = 0;
     for (int j = 0; j < rig.numJoints(); ++j) {
       const Vec3 d = st.jointMatrices[j].block<3, 1>(0, 3) - c;
-      if (d.dot(ax) > 0) EXPECT_GT((d - d.dot(ax) * ax).norm(), 0.02 - 0.004) << "joint " << j;
+      if (d.dot(ax) <= 0) continue;
+      ++alongForearm;
+      EXPECT_GT((d - d.dot(ax) * ax).norm(), 0.02 - 0.004) << "joint " << j;
     }
+    EXPECT_GE(alongForearm, 1) << "side " << side << ": some joint lies along the forearm's cylinder";
   }
 }
 
@@ -546,6 +550,8 @@ TEST(MuscleRig, DegeneratePosesStayFinite) {
   p.matrices[fa].topRightCorner<3, 1>() += mu.origin.position - mu.insertion.position;
   p.matrices[arm().find("hand")].topRightCorner<3, 1>() += mu.origin.position - mu.insertion.position;
   rig.evaluate(p, st, true);
+  ASSERT_EQ(st.jointMatrices.size(), 12u);  // six joints per muscle
+  ASSERT_EQ(st.surfaces.size(), 2u);
   for (const Mat4& J : st.jointMatrices) EXPECT_TRUE(J.allFinite());
   for (const Points& s : st.surfaces) EXPECT_TRUE(s.allFinite());
   Pose q = restPose(arm());
@@ -557,9 +563,13 @@ TEST(MuscleRig, DegeneratePosesStayFinite) {
 TEST(MuscleRig, ForearmRollIsDistributedAlongMusclesThatReachIt) {
   // A muscle from the upper arm to the forearm: twisting the forearm 60 degrees about its axis turns the
   // joint frames about the path by a share growing from ~0 at the origin to ~60 at the insertion (linear in
-  // arc length), or following the bones: little along the upper arm, most along the forearm.
-  const Muscle mu = biceps();
+  // arc length), or following the bones: little along the upper arm, most along the forearm. The biceps inserts
+  // 12 % down the forearm (no joint lies along the forearm proper); a longer flexor reaches 60 % down it.
+  const Vec3 sh = head("upper_arm"), el = head("forearm");
+  const Muscle longFlexor = spindle("long_flexor", sh + 0.15 * (el - sh) + Vec3(0, 0, 0.02), "upper_arm",
+                                    el + 0.6 * (tail("forearm") - el) + Vec3(0, 0, 0.015), "forearm", Vec3::UnitZ(), 0.02, 0.022);
   enum class Mode { Linear, Bones, Off };
+  for (const Muscle& mu : {biceps(), longFlexor})
   for (Mode mode : {Mode::Linear, Mode::Bones, Mode::Off}) {
     MuscleRigOptions o;
     o.distributeTwist = mode != Mode::Off;
@@ -604,8 +614,10 @@ TEST(MuscleRig, ForearmRollIsDistributedAlongMusclesThatReachIt) {
     if (mode == Mode::Linear) EXPECT_GT(prev, 40.0) << "the last joint, near the insertion, turns with the forearm";
     if (mode == Mode::Bones) {
       EXPECT_GT(prev, 25.0) << "the last joint, past the elbow, turns with the forearm";
-      std::printf("bone-following twist: %d joints along the upper arm, %d along the forearm\n", alongUpper, alongFore);
-      EXPECT_GE(alongUpper, 1);
+      std::printf("%s, bone-following twist: %d joints along the upper arm, %d along the forearm\n", mu.name.c_str(),
+                  alongUpper, alongFore);
+      EXPECT_GE(alongUpper, 1) << mu.name;
+      if (mu.name == "long_flexor") EXPECT_GE(alongFore, 1) << "the checks along the forearm ran";
     }
     EXPECT_TRUE(st.surfaces[0].allFinite());
   }

@@ -133,8 +133,10 @@ TEST(CuttingPlanes, PerpendicularEvenAndNonFlipping) {
   const auto planes = makeCuttingPlanes(c, classifyBones(c.skeleton), o);
   ASSERT_GT(planes.size(), 40u);
   const CuttingPlane* prev = nullptr;
+  int limbPlanes = 0;
   for (const CuttingPlane& p : planes) {
     if (p.family != "limb") continue;
+    ++limbPlanes;
     const Bone& b = c.skeleton.bones[p.bone];
     EXPECT_NEAR(p.normal.dot((b.tail - b.head).normalized()), 1.0, 1e-12);
     EXPECT_NEAR(p.xAxis.cross(p.yAxis).dot(p.normal), 1.0, 1e-12);  // right-handed, unit
@@ -147,6 +149,7 @@ TEST(CuttingPlanes, PerpendicularEvenAndNonFlipping) {
     }
     prev = &p;
   }
+  EXPECT_GT(limbPlanes, 40);  // the checks above ran along the upper arm and forearm (0.5 m at 1 cm)
   PlaneOptions bad;
   bad.spacing = -1;
   EXPECT_THROW(makeCuttingPlanes(c, classifyBones(c.skeleton), bad), InputError);
@@ -157,6 +160,8 @@ TEST(CutSections, SyntheticArmLoopsLieOnTheSkin) {
   const Character& c = arm.character;
   const auto planes = makeCuttingPlanes(c, classifyBones(c.skeleton));
   const auto profiles = cutSections(c, planes);
+  ASSERT_EQ(profiles.size(), planes.size());
+  ASSERT_FALSE(profiles.empty());
   int ok = 0;
   for (const SectionProfile& s : profiles) {
     if (!s.ok) continue;
@@ -194,6 +199,7 @@ TEST(CutSections, PlaneOutsideTheSkinIsSkippedWithAReason) {
   CuttingPlane beside = far;
   beside.origin = Vec3(0.3, 0.5, 0.0);  // cuts the arm, but the loop does not enclose this point
   const auto s = cutSections(c, {far, beside});
+  ASSERT_EQ(s.size(), 2u);
   for (const SectionProfile& p : s) {
     EXPECT_FALSE(p.ok);
     EXPECT_NE(p.skipReason.find("no skin loop"), std::string::npos) << p.skipReason;
@@ -209,14 +215,25 @@ TEST(CutSections, VertexMaskMarksPointsAndSkipsSectionsOutside) {
   std::vector<char> mask(c.mesh.numVertices());
   for (int v = 0; v < c.mesh.numVertices(); ++v) mask[v] = c.mesh.vertices(v, 0) > 0.5 && c.mesh.vertices(v, 2) > 0;
   const auto s = cutSections(c, planes, {}, &mask);
+  int outside = 0, kept = 0, unmasked = 0;  // planes before x 0.45; sections kept; their points below the mask
   for (const SectionProfile& p : s) {
-    if (p.plane.origin.x() < 0.45) EXPECT_FALSE(p.ok) << p.plane.origin.x();
+    if (p.plane.origin.x() < 0.45) {
+      ++outside;
+      EXPECT_FALSE(p.ok) << p.plane.origin.x();
+    }
     if (!p.ok) continue;
+    ++kept;
     for (Eigen::Index i = 0; i < p.polygon.rows(); ++i) {
       const Vec3 q = p.plane.origin + p.polygon(i, 0) * p.plane.xAxis + p.polygon(i, 1) * p.plane.yAxis;
-      if (q.z() < -0.01) EXPECT_FALSE(p.inMask[i]);
+      if (q.z() < -0.01) {
+        ++unmasked;
+        EXPECT_FALSE(p.inMask[i]);
+      }
     }
   }
+  EXPECT_GT(outside, 0);
+  EXPECT_GT(kept, 0);
+  EXPECT_GT(unmasked, 0);
 }
 
 // ============================================================================
@@ -309,11 +326,14 @@ TEST(CutSections, MakeHumanFamiliesAndMirroredLimbs) {
   std::printf("  %d clipped shoulder profiles\n", clipped);
   EXPECT_GE(clipped, 4);
   // Abdomen loops exclude the arms: narrower than the shoulders.
+  int abdomen = 0;
   for (const SectionProfile& s : profiles)
     if (s.ok && s.plane.family == "abdomen") {
+      ++abdomen;
       const double width = s.polygon.col(0).maxCoeff() - s.polygon.col(0).minCoeff();
       EXPECT_LT(std::abs(width), 0.6);
     }
+  EXPECT_GT(abdomen, 0);
   // Trunk planes through the shoulders run into the arms: every run off the trunk's region is a chord, the
   // profile stays counter-clockwise around the spine, and (the body being symmetric) exactly mirror-symmetric
   // with its chords at mirrored samples. Measured: 7 chest planes (y 0.49-0.62 m) were skipped before.

@@ -231,6 +231,7 @@ TEST(SkinQuality, RegionVolumesAddUpAndFollowRigidMotion) {
   Points moved(c.mesh.numVertices(), 3);
   for (int v = 0; v < c.mesh.numVertices(); ++v)
     moved.row(v) = (rigid * c.mesh.vertices.row(v).transpose().homogeneous()).head<3>().transpose();
+  ASSERT_EQ(regionVolumeChange(c.mesh.vertices, moved, c.mesh.triangles, labels, nb).size(), static_cast<size_t>(nb));
   for (double change : regionVolumeChange(c.mesh.vertices, moved, c.mesh.triangles, labels, nb))
     EXPECT_NEAR(change, 0.0, 1e-9);
   const Eigen::VectorXd bulge =

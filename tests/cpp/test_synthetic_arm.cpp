@@ -92,6 +92,7 @@ TEST(SyntheticArm, IsDeterministic) {
     EXPECT_EQ(a.character.weights.joints, b.character.weights.joints);
     EXPECT_EQ(a.character.weights.weights, b.character.weights.weights);
     ASSERT_EQ(a.muscles.size(), b.muscles.size());
+    ASSERT_EQ(a.muscles.size(), 6u);
     for (size_t m = 0; m < a.muscles.size(); ++m) {
       EXPECT_EQ(a.muscles[m].centerLine, b.muscles[m].centerLine);
       EXPECT_EQ(a.muscles[m].radius, b.muscles[m].radius);
@@ -254,6 +255,7 @@ TEST(SyntheticArm, HasTheSixMusclesWithSaneTruth) {
 TEST(SyntheticArm, CentreLinesLieUnderTheSkinAndBumpsProtrude) {
   for (unsigned seed : {0u, 1u, 2u}) {
     const SyntheticCharacter s = arm(seed), smooth = arm(seed, 0.0);
+    ASSERT_EQ(s.muscles.size(), 6u);
     for (const TrueMuscle& t : s.muscles) {
       double protrusion = 0.0;
       for (size_t k = 0; k < t.centerLine.size(); ++k) {
@@ -276,6 +278,7 @@ TEST(SyntheticArm, CentreLinesLieUnderTheSkinAndBumpsProtrude) {
 TEST(SyntheticArm, MuscleScaleScalesTheBumps) {
   const SyntheticCharacter half = arm(0, 0.5), full = arm(0, 1.0), smooth = arm(0, 0.0);
   ASSERT_EQ(half.muscles.size(), full.muscles.size());
+  ASSERT_EQ(full.muscles.size(), 6u);
   for (size_t m = 0; m < full.muscles.size(); ++m) {
     EXPECT_NEAR(half.muscles[m].peakRadius, 0.5 * full.muscles[m].peakRadius, 1e-12);
     const Vec3& p = full.muscles[m].centerLine[16];
@@ -326,6 +329,7 @@ TEST(SyntheticArm, TruthJsonRoundTrips) {
   const SyntheticCharacter s = arm(3);
   const std::vector<TrueMuscle> back = trueMusclesFromJson(trueMusclesToJson(s.muscles));
   ASSERT_EQ(back.size(), s.muscles.size());
+  ASSERT_EQ(back.size(), 6u);
   for (size_t m = 0; m < back.size(); ++m) {
     EXPECT_EQ(back[m].name, s.muscles[m].name);
     EXPECT_EQ(back[m].bone, s.muscles[m].bone);

@@ -69,6 +69,7 @@ def test_muscle_volume_constant_and_pc2(core, arm, tmp_path):
     assert muscles_rest
     for degrees in (30, 90, 130):
         posed = [c for c in skin.posed_components(elbow_pose(core, character, degrees)) if c["kind"] == "muscle_ellipsoid"]
+        assert len(posed) == len(muscles_rest)
         for a, b in zip(muscles_rest, posed):
             assert np.prod(b["radii"]) == pytest.approx(np.prod(a["radii"]), rel=1e-9)
     poses = np.stack([elbow_pose(core, character, d) for d in (0, 45, 90)])

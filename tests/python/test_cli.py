@@ -134,23 +134,26 @@ def test_info_and_extract_take_every_mesh_of_the_character(tmp_path):
     assert r.returncode == 1 and "no mesh called 'Cape'" in r.stderr and "Soldier_Feet" in r.stderr
 
 
-def test_roles_prints_and_writes_the_role_map_that_extract_takes(tmp_path):
+def test_roles_prints_and_writes_the_role_map_that_extract_takes(core, tmp_path):
     roles_file = tmp_path / "roles.json"
     r = run_cli("roles", shared(MUSCULAR), "-o", str(roles_file))
     assert r.returncode == 0, r.stderr
     assert re.search(r"^upperarm02\.L\s+limb\s+parent upperarm01\.L$", r.stdout, re.M), r.stdout
     roles = json.load(open(roles_file))
     assert len(roles) == 163 and roles["neck01"] == "neck" and roles["spine03"] == "spine"
-    # Overrides: the arms off, and the extraction then finds nothing on them.
+    # Overrides: the arms off, and the extraction then finds nothing on them (without them it does).
+    arms = ("upperarm", "lowerarm")
+    default, _ = core.extract_muscles(core.load_character(shared(MUSCULAR)), build_surfaces=False)
+    assert [m for m in default if m.region.startswith(arms)]
     for bone, role in list(roles.items()):
-        if bone.startswith(("upperarm", "lowerarm")):
+        if bone.startswith(arms):
             roles[bone] = "ignore"
     json.dump(roles, open(roles_file, "w"))
     out = tmp_path / "m.json"
     r = run_cli("extract", shared(MUSCULAR), "-o", str(out), "--no-surfaces", "--roles", str(roles_file))
     assert r.returncode == 0, r.stderr
     muscles = json.load(open(out))["muscles"]
-    assert muscles and not [m for m in muscles if m["region"].startswith(("upperarm", "lowerarm"))]
+    assert muscles and not [m for m in muscles if m["region"].startswith(arms)]
     json.dump({"upperarm01.L": "wing"}, open(roles_file, "w"))
     r = run_cli("extract", shared(MUSCULAR), "-o", str(out), "--roles", str(roles_file))
     assert r.returncode == 1 and "unknown bone role 'wing'" in r.stderr, r.stderr

@@ -61,6 +61,7 @@ def test_rest_pose_gives_bind_matrices_and_rest_surfaces(core, arm_rig):
     assert out["joint_matrices"].shape == (rig.num_joints, 4, 4)
     np.testing.assert_allclose(out["joint_matrices"], bind, rtol=0, atol=1e-9)
     np.testing.assert_allclose(out["stretch"], 1.0, atol=1e-12)
+    assert len(out["surfaces"]) == len(muscles) > 0
     for i, s in enumerate(out["surfaces"]):
         np.testing.assert_allclose(s, rig.rest_surface(i)[0], atol=1e-12)
     # Bind matrices are rigid, joints are parented to their muscle's origin bone.
@@ -77,8 +78,10 @@ def test_flexion_shortens_and_bulges_muscles_across_the_elbow(core, arm_rig):
     out = rig.evaluate(elbow_pose(core, character, math.radians(120)), with_surfaces=True)
     crossing = [i for i, m in enumerate(muscles) if m.origin_bone != m.insertion_bone]
     assert crossing, "some extracted muscle spans the elbow"
+    shortened = [i for i in crossing if out["stretch"][i] < 0.95]
+    assert shortened, "flexing the elbow 120 degrees shortens a muscle across it"
     for i in crossing:
-        if out["stretch"][i] < 0.95:
+        if i in shortened:
             j = rig.joint_offset(i) + rig.joint_count(i) // 2
             s = np.linalg.norm(out["joint_matrices"][j][:3, 0])
             assert s > 1.0, "a shortened muscle thickens"
@@ -115,15 +118,20 @@ def test_wrap_settings_and_bad_input(core, arm_rig):
 def test_makehuman_muscles_rig_and_follow_a_pose(core):
     character = core.load_character(shared(MUSCULAR))
     muscles, _ = core.extract_muscles(character)
+    assert len(muscles) >= 12  # the C++ tier's floor on this body (test_extraction MakeHumanMuscularVersusNeutral)
     rig = core.MuscleRig(character, muscles)
     rest = rig.evaluate(core.rest_pose(character))["joint_matrices"]
     np.testing.assert_allclose(rest, rig.bind_matrices, atol=1e-9)
     q = np.tile([1.0, 0, 0, 0], (character.num_bones, 1))
-    for name in character.bone_names:
-        if "lowerarm" in name or "forearm" in name or "lowerleg" in name or "shin" in name:
-            q[character.bone_names.index(name)] = quat([1, 0, 0], 0.8)
+    bent = [name for name in character.bone_names
+            if "lowerarm" in name or "forearm" in name or "lowerleg" in name or "shin" in name]
+    assert bent, "the elbows and knees are posed"
+    for name in bent:
+        q[character.bone_names.index(name)] = quat([1, 0, 0], 0.8)
     out = rig.evaluate(core.pose_from_rotations(character, q))
     assert np.isfinite(out["joint_matrices"]).all()
+    # the muscles across the bent elbows and knees change length (a rig that ignored the pose stays at 1)
+    assert np.abs(np.asarray(out["stretch"]) - 1.0).max() > 0.05
     print(f"makehuman_muscular_male: {rig.num_muscles} muscles, {rig.num_joints} joints, "
           f"stretch range {out['stretch'].min():.3f}-{out['stretch'].max():.3f}")
 

@@ -20,9 +20,11 @@ def test_extract_finds_the_synthetic_arms_muscles(core, arm):
     acc = core.measure_extraction(muscles, truth)
     print(f"seed 2: {len(muscles)} found, {len(truth)} true, recall {acc['recall']:.2f}, "
           f"precision {acc['precision']:.2f}, centre error {acc['mean_center_error']:.2f} radius")
-    # Issue 3's target is 0.9 / 0.9, not reached yet (issue notes); guard what works: a true muscle found.
-    assert acc["matched"] >= 3 and acc["true_muscles"] == len(truth), acc
-    assert acc["mean_center_error"] < 0.5, acc
+    # Issue 3's target, as the C++ tier asserts it on seeds 0-3 (test_extraction Measured): all six true muscles
+    # matched and nothing else (recall and precision 1.0), centres within 0.35 of the muscle radius.
+    assert acc["recall"] >= 0.9 and acc["precision"] >= 0.9, acc
+    assert acc["matched"] == 6 and len(muscles) == 6 and acc["true_muscles"] == len(truth), acc
+    assert acc["mean_center_error"] < 0.35, acc
     assert report["muscles"] == len(muscles) and report["planes"] >= report["sections"] > 0
     assert set(report["timings"]) >= {"planes", "sections", "bumps", "link", "ends", "surface"}
     for m in muscles:
@@ -80,7 +82,7 @@ def test_makehuman_trunk_is_mirror_consistent(core):
     crossing = [m for m in muscles if m.origin_bone != m.insertion_bone and m.wrap_type == "joint"]
     assert crossing and all(m.wrap_radius > 0 for m in crossing)
     straight, _ = core.extract_muscles(character, build_surfaces=False, joint_wrap=0.0)
-    assert all(m.wrap_type == "none" for m in straight)
+    assert len(straight) == len(muscles) and all(m.wrap_type == "none" for m in straight)
     with pytest.raises(ValueError, match="joint_wrap"):
         core.extract_muscles(character, joint_wrap=-0.1)
     # Opt-in: mirrored limb profiles averaged too, so every muscle's mirror image is exact (to rounding).
@@ -143,7 +145,8 @@ def test_cli_extract_makehuman(tmp_path):
     out = tmp_path / "mh.json"
     r = run_cli("extract", shared(MUSCULAR), "-o", str(out), "--no-surfaces")
     assert r.returncode == 0, r.stderr
-    assert len(json.loads(out.read_text())["muscles"]) > 0
+    # the C++ tier's floor on this body (test_extraction MakeHumanMuscularVersusNeutral; measured 20-22)
+    assert len(json.loads(out.read_text())["muscles"]) >= 12
 
 
 def test_continuous_floor_keeps_the_quadriceps(core):

@@ -12,6 +12,7 @@ def muscles(core):
 
 
 def test_reattach_unchanged_reproduces_the_extraction(core, muscles):
+    assert muscles
     for m in muscles:
         again = core.reattach_muscle(m)
         assert np.abs(np.asarray(again.root_curve) - np.asarray(m.root_curve)).max() < 1e-12

@@ -96,6 +96,12 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
 
     frame_start: IntProperty(name="Start", default=1)
     frame_end: IntProperty(name="End", default=120)
+    jiggle: BoolProperty(name="Jiggle", default=False,
+                         description="Simulate the muscles' jiggle from the start frame (the rig's Jiggle settings)")
+    jiggle_start: IntProperty(name="Simulation Start", default=-1000000,
+                              description="Jiggle: the frame the simulation starts from at rest (below Start: a farm "
+                                          "chunk of a longer bake, keyed from Start but simulated from here, so "
+                                          "chunks agree with one bake; default: Start)")
 
     def run(self, context):
         _skins, arm, state = require_bound(context)
@@ -115,10 +121,20 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
         wm = context.window_manager
         wm.progress_begin(self.frame_start, self.frame_end)
         current = scene.frame_current
+        rig = live.live_rig(arm)
         try:
+            sim_start = self.frame_start if self.jiggle_start == -1000000 else self.jiggle_start
+            if sim_start > self.frame_start:
+                raise ValueError(f"Simulation Start {sim_start} is after Start {self.frame_start}")
+            track = jiggle_track(context, arm, rig, sim_start, self.frame_end) if self.jiggle else None
             for frame in range(self.frame_start, self.frame_end + 1):
+                k = frame - sim_start
                 scene.frame_set(frame)
-                live.update_armature(arm, context.evaluated_depsgraph_get(), force=True)
+                if track is None:
+                    live.update_armature(arm, context.evaluated_depsgraph_get(), force=True)
+                else:  # the jiggled joints, posed against the skeleton pose the track was sampled with
+                    rig_io.write_joint_matrices(arm, rig.joint_names, track[0].joint_matrices(frame),
+                                                parent_matrices=(rig.bone_names, track[1][k]))
                 for n in names:
                     pb = arm.pose.bones[n]
                     pb.rotation_mode = 'QUATERNION'
@@ -129,8 +145,50 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
             wm.progress_end()
         state.live = False  # the baked Action plays now (also without the add-on); Live Update mutes it again
         scene.frame_set(current)
-        return (f"Baked {len(names)} muscle joints over frames {self.frame_start}-{self.frame_end} "
-                f"(live update off: the Action plays; turn it on after editing the animation)")
+        return (f"Baked {len(names)} muscle joints{' with jiggle' if self.jiggle else ''} over frames "
+                f"{self.frame_start}-{self.frame_end} (live update off: the Action plays; turn it on after editing "
+                f"the animation)")
+
+
+def jiggle_params(state, rig, track):
+    """#M by 3 (mass, stiffness, damping) of the rig's muscles: the track's defaults (by muscle size) with each
+    muscle's own Jiggle Frequency / Damping where set; None when no muscle overrides them."""
+    items = {m.name: m for m in state.muscles}
+    params = np.array(track.params, dtype=np.float64)
+    changed = False
+    for i, muscle in enumerate(rig.rig.muscles):
+        item = items.get(muscle.name)
+        if item is None:
+            continue
+        mass, stiffness, damping = params[i]
+        ratio = damping / (2.0 * np.sqrt(stiffness * mass))
+        if item.jiggle_frequency > 0.0:
+            stiffness, changed = mass * (2.0 * np.pi * item.jiggle_frequency) ** 2, True
+        if item.jiggle_damping >= 0.0:
+            ratio, changed = item.jiggle_damping, True
+        params[i] = (mass, stiffness, 2.0 * ratio * np.sqrt(stiffness * mass))
+    return params if changed else None
+
+
+def jiggle_track(context, arm, rig, start, end):
+    """(core JiggleTrack over frames start..end, #F by #B by 4 by 4 skeleton poses it was sampled from): the
+    evaluated skeleton of every frame (IK and constraints included) at the scene's frame rate, with the rig's
+    Jiggle settings. Deterministic: the same frames give the same track, so separate bakes of a range agree."""
+    scene, state = context.scene, rig_state(arm)
+    poses = []
+    for frame in range(start, end + 1):
+        scene.frame_set(frame)
+        poses.append(live.evaluated_pose(arm, rig, context.evaluated_depsgraph_get()))
+    poses = np.ascontiguousarray(poses, dtype=np.float64)
+    fps = scene.render.fps / scene.render.fps_base
+    settings = dict(frequency=state.jiggle_frequency, damping_ratio=state.jiggle_damping,
+                    amount=state.jiggle_amount)
+    core = core_loader.core()
+    track = core.JiggleTrack(rig.character, rig.rig, poses, fps, float(start), **settings)
+    params = jiggle_params(state, rig, track)
+    if params is not None:
+        track = core.JiggleTrack(rig.character, rig.rig, poses, fps, float(start), params=params, **settings)
+    return track, poses
 
 
 class MYOSKIN_OT_export_gltf(_MuscleOperator, bpy.types.Operator):
@@ -177,6 +235,14 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
     frame_start: IntProperty(name="Start", default=1)
     frame_end: IntProperty(name="End", default=120)
     add_modifier: BoolProperty(name="Add Mesh Cache Modifier", default=False)
+    skin_solve: BoolProperty(name="Skin Solve", default=False,
+                             description="Per frame, relax the skinned skin with edge springs toward a per-vertex goal "
+                                         "and push it out of the posed muscles, so it slides over them (Gray & "
+                                         "Hutchinson; muscle-joint skins only)")
+    mute_armature: BoolProperty(name="Mute Armature Modifier", default=True,
+                                description="With Add Mesh Cache Modifier: switch the mesh's Armature modifier off "
+                                            "(the cache replaces its result, so it would only cost time); Unbind "
+                                            "switches it back on and removes the cache modifiers")
 
     def run(self, context):
         skins, arm, state = require_bound(context)
@@ -184,33 +250,58 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
             raise ValueError(f"Frame range {self.frame_start}-{self.frame_end} is empty")
         path = bpy.path.abspath(self.filepath)
         paths = pc2_paths(path, skins)
-        frames = bake_skin_frames(context, skins, arm, self.frame_start, self.frame_end)
+        frames = bake_skin_frames(context, skins, arm, self.frame_start, self.frame_end, self.skin_solve)
         os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
         for skin, mesh_path, mesh_frames in zip(skins, paths, frames):
             core_loader.core().write_pc2(mesh_path, mesh_frames, float(self.frame_start), 1.0)
             if self.add_modifier:
-                mod = skin.modifiers.new("Myoskin PC2", 'MESH_CACHE')
+                mod = skin.modifiers.new(binding.PC2_MODIFIER, 'MESH_CACHE')
                 mod.cache_format, mod.filepath = 'PC2', mesh_path
+                # Frame time mode reads sample (scene frame - frame_start): sample 0 is frame_start
+                mod.time_mode, mod.play_mode, mod.frame_start = 'FRAME', 'SCENE', float(self.frame_start)
+                if self.mute_armature:
+                    binding.mute_armature_for_cache(skin, arm)
         count = self.frame_end - self.frame_start + 1
         if len(skins) == 1:
             return f"Baked {count} frames of {skins[0].name} to {path}"
         return f"Baked {count} frames of {len(skins)} meshes to " + ", ".join(paths)
 
 
-def bake_skin_frames(context, skins, arm, start, end):
+class SolvedSkin:
+    """A mesh's skinner followed by the skin solve: the skinned pose is the goal, the posed muscles collide."""
+
+    def __init__(self, skinner, solver, rig):
+        self.skinner, self.solver, self.rig = skinner, solver, rig
+
+    def solve(self, transforms, pose):
+        goal = self.skinner.deform(transforms).astype(np.float64)
+        return np.asarray(self.solver.solve(goal, self.rig, pose), dtype=np.float64)
+
+
+def bake_skin_frames(context, skins, arm, start, end, skin_solve=False):
     """Per mesh of `skins`, #frames by #V by 3 float32 skin positions (mesh object space) from the core's
-    skinner; the skeleton and the rig are evaluated once per frame for all of them."""
+    skinner (or anchored skin), with skin_solve each muscle-joint skin then solved against the posed muscles
+    (SkinSolver); the skeleton and the rig are evaluated once per frame for all of them."""
     core = core_loader.core()
     rig = live.live_rig(arm)
     names = rig.bone_names + rig.joint_names
+    anchored = {name: (frame, deformer) for name, frame, deformer in rig.anchored}
     meshes = []
     for skin in skins:
+        if skin.name in anchored:  # the anchored deformer: the core's AnchoredSkin of this mesh, per pose
+            frame, deformer = anchored[skin.name]
+            meshes.append((deformer, frame.to_mesh, np.empty((end - start + 1, len(frame.rest), 3), dtype=np.float32)))
+            continue
         joints, weights = rig_io.read_combined_weights(skin, names)
         to_arm = blender_io.mesh_to_armature_matrix(skin, arm)
         rest = blender_io.mesh_vertices(skin.data) @ to_arm[:3, :3].T + to_arm[:3, 3]
         # The mode Blender skins this mesh with (its Armature modifier's Preserve Volume), so the PC2 equals
         # Blender's skin; the transforms and rest matrices are in armature space, as the modifier's.
         skinner = binding.skinner_for(skin, arm, rig, rest, joints, weights)
+        if skin_solve:
+            goal_weights = core.default_goal_weights(joints, weights, len(rig.bone_names))
+            skinner = SolvedSkin(skinner, core.SkinSolver(blender_io.character_from_blender(skin, arm), rig.rig,
+                                                          goal_weights), rig.rig)
         meshes.append((skinner, np.linalg.inv(to_arm), np.empty((end - start + 1, len(rest), 3), dtype=np.float32)))
     rest_bones = np.asarray(rig.character.bone_rest)
     bind_inv = np.linalg.inv(np.asarray(rig.rig.bind_matrices))
@@ -222,12 +313,16 @@ def bake_skin_frames(context, skins, arm, start, end):
             pose = live.evaluated_pose(arm, rig, context.evaluated_depsgraph_get())
             joint_matrices = rig.rig.evaluate(pose)["joint_matrices"]
             transforms = np.concatenate([pose @ np.linalg.inv(rest_bones), joint_matrices @ bind_inv])
-            for skinner, to_mesh, out in meshes:
-                posed = skinner.deform(transforms).astype(np.float64)
+            for deformer, to_mesh, out in meshes:
+                if isinstance(deformer, SolvedSkin):
+                    posed = deformer.solve(transforms, pose)
+                else:
+                    posed = (deformer.evaluate(pose) if hasattr(deformer, "evaluate")
+                             else deformer.deform(transforms)).astype(np.float64)
                 out[k] = posed @ to_mesh[:3, :3].T + to_mesh[:3, 3]
     finally:
         scene.frame_set(current)
-    return [out for _skinner, _to_mesh, out in meshes]
+    return [out for _deformer, _to_mesh, out in meshes]
 
 
 classes = (MYOSKIN_OT_bind, MYOSKIN_OT_unbind, MYOSKIN_OT_bake_action, MYOSKIN_OT_export_gltf,

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The add-on's panels: the View3D sidebar tab and the Properties editor's modifier tab."""
-from . import modifier, sidebar
+from . import correctives, modifier, sidebar
 
-classes = (*sidebar.classes, *modifier.classes)
+classes = (*sidebar.classes, *correctives.classes, *modifier.classes)

@@ -35,6 +35,9 @@ Character loadObjWithSkeleton(const std::string& objPath, const std::string& ske
 Character loadCharacter(const std::string& path, const LoadOptions& options = {},
                         const std::string& skeletonPath = "");
 
+// An OBJ's vertices and triangles as stored (faces fan-triangulated, no welding): e.g. a sculpted frame.
+Mesh readObjMesh(const std::string& path);
+
 // Writers used by the generator, tests and the CLI.
 void writeObj(const std::string& path, const Points& vertices, const Triangles& triangles);
 void writeSkeletonJson(const std::string& path, const Character& character);

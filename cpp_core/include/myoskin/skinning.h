@@ -20,6 +20,8 @@
 namespace myoskin {
 
 using PointsF = Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>;  // #V by 3 float32
+// #V by 12: per vertex the row-major 3 by 4 affine map [A | b] a deform applies to it (Skinner::vertexTransforms).
+using VertexTransforms = Eigen::Matrix<double, Eigen::Dynamic, 12, Eigen::RowMajor>;
 
 // Weight sum at or below which a vertex stays at rest (Blender's Armature modifier).
 constexpr double kRestWeightThreshold = 1e-4;
@@ -148,6 +150,13 @@ class Skinner {
   void deform(const std::vector<Mat4>& transforms, Points& out) const;
   // Raw output buffer of 3 * numVertices() floats (row-major #V by 3), e.g. a numpy array or a PC2 frame.
   void deform(const std::vector<Mat4>& transforms, float* out) const;
+
+  // Per vertex the affine map x -> A x + b that deform() applies to the vertex's input position x (in float64):
+  // for fixed weights both blends are affine in x (linear: A | b = sum w_i T_i; Blender's dual quaternions: the
+  // blended rotation and, Pivot, the scale's translation at the pivot x, or, Blended, the blended scale matrix),
+  // so a shape offset d moves the skinned vertex by A d, and A^-1 maps a sculpt back to the skinner's input
+  // (correctives.h). out: #V by 12 (resized once). Same errors as deform.
+  void vertexTransforms(const std::vector<Mat4>& transforms, VertexTransforms& out) const;
 
   struct Impl;
 

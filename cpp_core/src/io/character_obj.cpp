@@ -238,6 +238,8 @@ json vecJson(const Vec3& v) {
 // ============================================================================
 
 // OBJ mesh + skeleton JSON -> welded, validated character.
+Mesh readObjMesh(const std::string& path) { return readObj(path); }
+
 Character loadObjWithSkeleton(const std::string& objPath, const std::string& skeletonJsonPath,
                               const LoadOptions& options) {
   const Mesh source = readObj(objPath);

@@ -510,6 +510,133 @@ void Skinner::deform(const std::vector<Mat4>& transforms, Points& out) const {
   out = f.cast<double>();
 }
 
+// ============================================================================
+// Per-vertex affine maps (the inverse skinning of correctives.h)
+// ============================================================================
+
+namespace {
+
+using Mat34 = Eigen::Matrix<double, 3, 4>;
+
+// The rotation rows of mul_v3m3_dq for a blended quaternion (w, x, y, z), before the 1/|q|^2 normalisation.
+Mat3 dqRotation(const Eigen::Vector4d& q) {
+  const double w = q[0], x = q[1], y = q[2], z = q[3];
+  Mat3 r;
+  r << w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y),
+      2 * (x * y + w * z), w * w + y * y - x * x - z * z, 2 * (y * z - w * x),
+      2 * (x * z - w * y), 2 * (y * z + w * x), w * w + z * z - x * x - y * y;
+  return r;
+}
+
+// The translation of mul_v3m3_dq as a linear map of the blended dual part (t0..t3).
+Mat34 dqTranslation(const Eigen::Vector4d& q) {
+  const double w = q[0], x = q[1], y = q[2], z = q[3];
+  Mat34 m;
+  m << -x, w, -z, y,
+       -y, z, w, -x,
+       -z, -y, x, w;
+  return 2.0 * m;
+}
+
+// One vertex's dual-quaternion blend as an affine map of its input position (skinRangeDualQuat, in float64).
+template <bool Blended>
+Mat34 dualQuatAffine(const Skinner::Impl& s, const JointDQ* D, int v) {
+  const int k = s.slots;
+  const uint16_t* jv = s.joint.data() + static_cast<size_t>(v) * k;
+  const float* wv = s.weight.data() + static_cast<size_t>(v) * k;
+  Eigen::Vector4d sq = Eigen::Vector4d::Zero(), st0 = Eigen::Vector4d::Zero();
+  Eigen::Matrix<double, 4, 3> stLinear = Eigen::Matrix<double, 4, 3>::Zero();  // st(co) = st0 + stLinear co
+  Mat34 sm = Mat34::Zero();
+  double scaleWeight = 0.0, total = 0.0;
+  for (int i = 0; i < k; ++i) {
+    double w = wv[i];
+    if (w == 0.0) continue;
+    total += w;
+    const JointDQ& d = D[jv[i]];
+    const Eigen::Vector4d q(d.quat[0], d.quat[1], d.quat[2], d.quat[3]);
+    Eigen::Vector4d tr(d.trans[0], d.trans[1], d.trans[2], d.trans[3]);
+    Eigen::Matrix<double, 4, 3> trLinear = Eigen::Matrix<double, 4, 3>::Zero();
+    if (d.hasScale != 0.0f) {
+      Mat34 m;
+      for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 3; ++r) m(r, c) = d.scale[3 * c + r];
+      if (Blended) {
+        sm += w * m;
+        scaleWeight += w;
+      } else {  // dst = M co + m - co, added to the dual part through L(q)
+        Eigen::Matrix<double, 4, 3> L;
+        L << -q[1], -q[2], -q[3],
+              q[0], -q[3], q[2],
+              q[3], q[0], -q[1],
+             -q[2], q[1], q[0];
+        L *= 0.5;
+        tr += L * m.col(3);
+        trLinear = L * (m.leftCols<3>() - Mat3::Identity());
+      }
+    }
+    if (q.dot(sq) < 0.0) w = -w;
+    sq += w * q;
+    st0 += w * tr;
+    stLinear += w * trLinear;
+  }
+  Mat3 C = Mat3::Identity();
+  Vec3 c = Vec3::Zero();
+  if (Blended && scaleWeight != 0.0) {
+    C = (sm.leftCols<3>() + (total - scaleWeight) * Mat3::Identity()) / total;
+    c = sm.col(3) / total;
+  }
+  double len2 = sq.squaredNorm();
+  if (len2 > 0.0) len2 = 1.0 / len2;
+  const Mat3 R = dqRotation(sq);
+  const Mat34 T = dqTranslation(sq);
+  Mat34 out;
+  out.leftCols<3>() = len2 * (R * C + T * stLinear);
+  out.col(3) = len2 * (R * c + T * st0);
+  return out;
+}
+
+// One vertex's linear blend sum w_i T_i as an affine map.
+Mat34 linearAffine(const Skinner::Impl& s, const std::vector<Mat4>& transforms, int v) {
+  const int k = s.slots;
+  const uint16_t* jv = s.joint.data() + static_cast<size_t>(v) * k;
+  const float* wv = s.weight.data() + static_cast<size_t>(v) * k;
+  Mat34 m = Mat34::Zero();
+  for (int i = 0; i < k; ++i) {
+    if (wv[i] == 0.0f) continue;
+    const double w = wv[i];
+    if (jv[i] >= s.numJoints)
+      m.leftCols<3>() += w * Mat3::Identity();
+    else
+      m += w * transforms[jv[i]].topRows<3>();
+  }
+  return m;
+}
+
+}  // namespace
+
+void Skinner::vertexTransforms(const std::vector<Mat4>& transforms, VertexTransforms& out) const {
+  const Impl& s = *impl_;
+  std::shared_lock<std::shared_mutex> lock(s.optionsMutex);
+  if (out.rows() != s.numVertices) out.resize(s.numVertices, 12);
+  auto store = [&](int v, const Mat34& m) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) out(v, 4 * r + c) = m(r, c);
+  };
+  if (s.options.preserveVolume) {
+    const std::vector<JointDQ> D = packDualQuats(transforms, s);
+    const bool blended = s.options.dualQuatScale == DualQuatScale::Blended;
+    parallelRanges(s, [&](int begin, int end) {
+      for (int v = begin; v < end; ++v)
+        store(v, blended ? dualQuatAffine<true>(s, D.data(), v) : dualQuatAffine<false>(s, D.data(), v));
+    });
+    return;
+  }
+  packTransforms(transforms, s.numJoints);  // the same checks as deform (count, finite)
+  parallelRanges(s, [&](int begin, int end) {
+    for (int v = begin; v < end; ++v) store(v, linearAffine(s, transforms, v));
+  });
+}
+
 Points skin(const Points& rest, const SkinWeights& weights, const std::vector<Mat4>& transforms,
             const SkinnerOptions& options) {
   const Skinner skinner(rest, weights, static_cast<int>(transforms.size()), options);

@@ -1,0 +1,174 @@
+// Pose-space correctives: rest-space offsets of a sculpt, bone local rotations, the per-bone radial basis
+// functions (their kernels and coefficients, which the add-on writes as Blender drivers) and their weights.
+#include <memory>
+
+#include "bindings.h"
+#include "myoskin/character.h"
+#include "myoskin/correctives.h"
+#include "myoskin/errors.h"
+#include "myoskin/skinning.h"
+
+namespace myoskin::python {
+
+namespace {
+
+using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+// #N by 3 float64 points, ValueError naming `name` on another shape.
+Points pointsOf(const DoubleArray& a, const char* name) {
+  if (a.ndim() != 2 || a.shape(1) != 3)
+    throw InputError(std::string(name) + " must be #V by 3");
+  Points p(a.shape(0), 3);
+  std::copy(a.data(), a.data() + a.size(), p.data());
+  return p;
+}
+
+// #B by 4 (w, x, y, z) quaternions.
+std::vector<Eigen::Quaterniond> quaternionsOf(const DoubleArray& a) {
+  if (a.ndim() != 2 || a.shape(1) != 4) throw InputError("local_rotations must be #B by 4 (w, x, y, z)");
+  std::vector<Eigen::Quaterniond> q(a.shape(0));
+  auto v = a.unchecked<2>();
+  for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+    q[i] = Eigen::Quaterniond(v(i, 0), v(i, 1), v(i, 2), v(i, 3));
+    if (!q[i].coeffs().allFinite()) throw InputError("local_rotations: row " + std::to_string(i) + " is not finite");
+  }
+  return q;
+}
+
+py::array_t<double> quaternionsToArray(const std::vector<Eigen::Quaterniond>& q) {
+  py::array_t<double> out({static_cast<py::ssize_t>(q.size()), py::ssize_t(4)});
+  auto a = out.mutable_unchecked<2>();
+  for (size_t i = 0; i < q.size(); ++i) {
+    a(i, 0) = q[i].w();
+    a(i, 1) = q[i].x();
+    a(i, 2) = q[i].y();
+    a(i, 3) = q[i].z();
+  }
+  return out;
+}
+
+py::array_t<double> pointsToArray(const Points& p) {
+  py::array_t<double> out({static_cast<py::ssize_t>(p.rows()), py::ssize_t(3)});
+  std::copy(p.data(), p.data() + p.size(), out.mutable_data());
+  return out;
+}
+
+}  // namespace
+
+void bindCorrectives(py::module_& m) {
+  m.def(
+      "vertex_transforms",
+      [](const Skinner& s, const DoubleArray& transforms) {
+        const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
+        VertexTransforms out;
+        {
+          py::gil_scoped_release release;
+          s.vertexTransforms(t, out);
+        }
+        py::array_t<double> a({static_cast<py::ssize_t>(out.rows()), py::ssize_t(3), py::ssize_t(4)});
+        std::copy(out.data(), out.data() + out.size(), a.mutable_data());
+        return a;
+      },
+      py::arg("skinner"), py::arg("transforms"),
+      "#V by 3 by 4: per vertex the affine map [A | b] the skinner's deform applies to its input position "
+      "(linear blend or Blender's dual quaternions, as the skinner does).");
+  m.def(
+      "rest_space_offsets",
+      [](const Skinner& s, const DoubleArray& transforms, const DoubleArray& input, const DoubleArray& target) {
+        const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
+        const Points in = pointsOf(input, "input");
+        const Points tg = pointsOf(target, "target");
+        Points out;
+        {
+          py::gil_scoped_release release;
+          out = restSpaceOffsets(s, t, in, tg);
+        }
+        return pointsToArray(out);
+      },
+      py::arg("skinner"), py::arg("transforms"), py::arg("input"), py::arg("target"),
+      "#V by 3 offsets d such that the skinner, given input + d (#V by 3, what it skins: rest plus the shape keys "
+      "already on), lands on target (#V by 3, the sculpt) under transforms: d = A^-1 (target - b) - input per "
+      "vertex. ValueError on a vertex count mismatch, NaN, or a vertex whose transform collapses.");
+  m.def(
+      "bone_local_rotations",
+      [](const Character& c, const DoubleArray& poseMatrices) {
+        const Pose pose = poseFromArray(poseMatrices, c.skeleton.numBones());
+        std::vector<Eigen::Quaterniond> q;
+        boneLocalRotations(c.skeleton, pose, q);
+        return quaternionsToArray(q);
+      },
+      py::arg("character"), py::arg("pose"),
+      "#B by 4 (w, x, y, z): each bone's rotation relative to its parent and its rest frame (what a Blender driver "
+      "reads as the bone's Local Space quaternion).");
+  m.def(
+      "bone_direction",
+      [](const std::array<double, 4>& q) {
+        const Vec3 d = boneDirection(Eigen::Quaterniond(q[0], q[1], q[2], q[3]).normalized());
+        return std::array<double, 3>{d[0], d[1], d[2]};
+      },
+      py::arg("local_rotation"), "The bone's Y axis (x, y, z) in its rest frame for a local rotation (w, x, y, z).");
+
+  py::class_<CorrectiveDrivers, std::shared_ptr<CorrectiveDrivers>>(
+      m, "CorrectiveDrivers",
+      "The radial basis functions that drive pose-space correctives by their bones' directions: per bone a kernel "
+      "max(k0 + k1 (xy - wz) + k2 (xx + zz) + k3 (yz + wx), 0)^3 per sample (the rest direction, then each pose) and "
+      "coefficients, weight = sum_j c_j phi_j.")
+      .def(py::init([](const py::list& poses, double falloff, double minSeparation) {
+             std::vector<CorrectivePose> p;
+             for (const py::handle& item : poses) {
+               const py::dict d = item.cast<py::dict>();
+               CorrectivePose cp;
+               cp.name = d["name"].cast<std::string>();
+               cp.bone = d["bone"].cast<int>();
+               const auto dir = d["direction"].cast<std::array<double, 3>>();
+               cp.direction = Vec3(dir[0], dir[1], dir[2]);
+               cp.falloff = d.contains("falloff") ? d["falloff"].cast<double>() : 0.0;
+               p.push_back(std::move(cp));
+             }
+             CorrectiveOptions o;
+             o.falloff = falloff;
+             o.minSeparation = minSeparation;
+             return std::make_shared<CorrectiveDrivers>(std::move(p), o);
+           }),
+           py::arg("poses"), py::arg("falloff") = CorrectiveOptions{}.falloff,
+           py::arg("min_separation") = CorrectiveOptions{}.minSeparation,
+           "poses: [{'name', 'bone' (index), 'direction' (bone_direction at the sculpted pose), 'falloff' (radians, "
+           "optional)}]; falloff: the default angular radius (60 degrees); min_separation: closer samples of one "
+           "bone are the same pose (0.5 degrees). ValueError on identical poses, a pose at rest, bad values.")
+      .def_property_readonly("num_correctives", &CorrectiveDrivers::numCorrectives)
+      .def_property_readonly("names",
+                             [](const CorrectiveDrivers& d) {
+                               std::vector<std::string> n;
+                               for (const CorrectivePose& p : d.poses()) n.push_back(p.name);
+                               return n;
+                             })
+      .def_property_readonly(
+          "bones",
+          [](const CorrectiveDrivers& d) {
+            py::list out;
+            for (const BoneCorrectiveRbf& r : d.bones()) {
+              py::dict b;
+              b["bone"] = r.bone;
+              b["correctives"] = r.correctives;
+              py::array_t<double> k({static_cast<py::ssize_t>(r.kernels.size()), py::ssize_t(4)});
+              for (size_t j = 0; j < r.kernels.size(); ++j)
+                for (int c = 0; c < 4; ++c) k.mutable_at(j, c) = r.kernels[j][c];
+              b["kernels"] = k;
+              b["coefficients"] = Eigen::MatrixXd(r.coefficients);
+              out.append(b);
+            }
+            return out;
+          },
+          "per driving bone: {'bone', 'correctives' (indices), 'kernels' (1 + n by 4, rest first), 'coefficients' "
+          "(1 + n by n)}")
+      .def(
+          "weights",
+          [](const CorrectiveDrivers& d, const DoubleArray& rotations) {
+            Eigen::VectorXd w;
+            d.weights(quaternionsOf(rotations), w);
+            return w;
+          },
+          py::arg("local_rotations"), "One weight per corrective from #B by 4 local rotations (bone_local_rotations).");
+}
+
+}  // namespace myoskin::python
