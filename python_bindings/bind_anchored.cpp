@@ -103,8 +103,8 @@ void bindAnchored(py::module_& m) {
       "per frame; relaxation toward the rest edge lengths at seams.")
       .def(py::init([](const Character& c, const std::vector<Muscle>& muscles, bool muscleCylinders,
                        bool boneCapsules, bool jointSpheres, double capsuleRadius, double jointSphereRadius,
-                       double muscleBulge, const py::list& stuffing, double weightShare, double bellyReach,
-                       int relaxRings, int relaxIterations, double relaxTolerance, double relaxStep,
+                       double muscleBulge, const py::list& stuffing, double weightShare, double bellyReach, double muscleRigidShare, double muscleAim,
+                       int relaxRings, int relaxIterations, double relaxTolerance, double relaxStep, bool relaxTangential,
                        const std::vector<int>& pinned, double tolerance, int maxIterations, int grainSize, int threads) {
              if (!c.hasWeights()) throw InputError("AnchoredSkin: the character has no skin weights");
              ComponentOptions co;
@@ -119,10 +119,13 @@ void bindAnchored(py::module_& m) {
              AnchoredSkinOptions o;
              o.weightShare = weightShare;
              o.bellyReach = bellyReach;
+             o.muscleRigidShare = muscleRigidShare;
+             o.muscleAim = muscleAim;
              o.relaxRings = relaxRings;
              o.relaxIterations = relaxIterations;
              o.relaxTolerance = relaxTolerance;
              o.relaxStep = relaxStep;
+             o.relaxTangential = relaxTangential;
              o.pinned = pinned;
              o.solver = {tolerance, maxIterations};
              o.grainSize = grainSize;
@@ -143,10 +146,13 @@ void bindAnchored(py::module_& m) {
            py::arg("muscle_bulge") = ComponentOptions{}.muscleBulge, py::arg("stuffing") = py::list(),
            py::arg("weight_share") = AnchoredSkinOptions{}.weightShare,
            py::arg("belly_reach") = AnchoredSkinOptions{}.bellyReach,
+           py::arg("muscle_rigid_share") = AnchoredSkinOptions{}.muscleRigidShare,
+           py::arg("muscle_aim") = AnchoredSkinOptions{}.muscleAim,
            py::arg("relax_rings") = AnchoredSkinOptions{}.relaxRings,
            py::arg("relax_iterations") = AnchoredSkinOptions{}.relaxIterations,
            py::arg("relax_tolerance") = AnchoredSkinOptions{}.relaxTolerance,
-           py::arg("relax_step") = AnchoredSkinOptions{}.relaxStep, py::arg("pinned") = std::vector<int>{},
+           py::arg("relax_step") = AnchoredSkinOptions{}.relaxStep,
+           py::arg("relax_tangential") = AnchoredSkinOptions{}.relaxTangential, py::arg("pinned") = std::vector<int>{},
            py::arg("tolerance") = EllipsoidSolverOptions{}.tolerance,
            py::arg("max_iterations") = EllipsoidSolverOptions{}.maxIterations,
            py::arg("grain_size") = AnchoredSkinOptions{}.grainSize, py::arg("threads") = AnchoredSkinOptions{}.threads,

@@ -50,21 +50,27 @@ class Relaxer {
   // movable[v] != 0 for the vertices the relaxation may move; edges from meshEdges(rest).
   void build(const Mesh& rest, const std::vector<char>& movable, const std::vector<std::pair<int, int>>& edges);
   int numMovable() const { return static_cast<int>(movable_.size()); }
-  // Jacobi iterations toward the rest lengths on x (#V by 3), energy checked per iteration (a step that raises it
-  // is undone and halved); trace receives the energies. No allocation.
-  void run(Eigen::Map<Points> x, const AnchoredSkinOptions& options, RelaxationTrace* trace) const;
+  // Jacobi iterations toward the rest lengths on x (#V by 3) over the strained seam vertices and their
+  // neighbours, energy checked per iteration (a step that raises it is undone and halved); trace receives the
+  // energies (none when nothing is strained, e.g. at rest). No allocation.
+  // normals: #V by 3 unit directions (the anchors' posed surface vectors) along which, with
+  // options.relaxTangential, the vertices do not move.
+  void run(Eigen::Map<Points> x, const Points& normals, const AnchoredSkinOptions& options,
+           RelaxationTrace* trace) const;
   // Edges of the mesh as pairs (a < b), from OpenMesh plus any faces it refused (non-manifold).
   static std::vector<std::pair<int, int>> meshEdges(const Mesh& mesh);
 
  private:
-  double energy(const Eigen::Map<Points>& x) const;
+  double energy(const Eigen::Map<Points>& x, int activeCount) const;
   std::vector<int> movable_;                // vertex ids
   std::vector<int> offsets_;                // CSR over movable_: neighbours
   std::vector<int> neighbours_;
   std::vector<double> restLength_;          // per CSR entry
-  std::vector<int> edgeA_, edgeB_;          // energy edges (at least one end movable)
+  std::vector<int> neighbourSlot_;          // per CSR entry: the neighbour's index in movable_, or -1
+  std::vector<int> edgeA_, edgeB_;          // edges with at least one end movable
   std::vector<double> edgeRest_;
-  double quiet_ = 0.0;                      // energy of edges all within 1e-9 of their mean rest length: at rest
+  mutable std::vector<char> strained_, active_;  // #movable, per frame
+  mutable std::vector<int> activeList_;          // #movable capacity; the first `count` are this frame's
   mutable Points next_;                     // #movable by 3 scratch
   mutable Points backup_;
 };

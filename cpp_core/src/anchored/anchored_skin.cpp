@@ -39,6 +39,7 @@ struct AnchoredSkin::Impl {
   mutable std::vector<Mat4> transforms;
   mutable std::vector<Vec3> posedCentre, posedScale;
   mutable std::vector<Mat3> posedAxes;
+  mutable Points normals;  // #V by 3: each vertex's posed surface vector, normalised (relaxation's normal)
 
   void poseComponents(const Pose& pose) const;
 };
@@ -96,7 +97,9 @@ void AnchoredSkin::Impl::poseComponents(const Pose& pose) const {
         const Vec3 d = in - o;
         const double length = d.norm();
         const Vec3 along = length > 1e-12 * restLength[k] ? Vec3(d / length) : carried;
-        const Mat3 turn = Eigen::Quaterniond::FromTwoVectors(carried, along).toRotationMatrix();
+        const Mat3 turn = Eigen::Quaterniond::Identity()
+                              .slerp(options.muscleAim, Eigen::Quaterniond::FromTwoVectors(carried, along))
+                              .toRotationMatrix();
         const double stretch = std::clamp(length / restLength[k], kMinStretch, kMaxStretch);
         const double effective = std::pow(stretch, c.bulge);
         const double across = 1.0 / std::sqrt(effective);
@@ -122,9 +125,11 @@ AnchoredSkin::AnchoredSkin(const Mesh& restSkin, const SkinWeights& skinWeights,
   validateSkinWeights(skinWeights, restSkin.numVertices(), skeleton.numBones());
   if (components.components.empty()) throw InputError("anchored skin: no components to anchor the skin to");
   if (!(options.weightShare >= 0.0 && options.weightShare <= 1.0) || !(options.bellyReach > 0.0) ||
+      !(options.muscleRigidShare >= 0.0 && options.muscleRigidShare <= 1.0) ||
+      !(options.muscleAim >= 0.0 && options.muscleAim <= 1.0) ||
       options.relaxRings < 0 || options.relaxIterations < 0 || !(options.relaxTolerance >= 0.0) ||
       !(options.relaxStep > 0.0 && options.relaxStep <= 1.0) || options.grainSize < 1 || options.threads < 0)
-    throw InputError("anchored skin options: weightShare in [0, 1], bellyReach > 0, relaxRings/relaxIterations >= 0, "
+    throw InputError("anchored skin options: weightShare, muscleRigidShare and muscleAim in [0, 1], bellyReach > 0, relaxRings/relaxIterations >= 0, "
                      "relaxTolerance >= 0, relaxStep in (0, 1], grainSize >= 1, threads >= 0");
   const int nv = restSkin.numVertices();
   for (int p : options.pinned)
@@ -166,9 +171,13 @@ AnchoredSkin::AnchoredSkin(const Mesh& restSkin, const SkinWeights& skinWeights,
     std::vector<int> eligible;
     for (int v = range.begin(); v < range.end(); ++v) {
       const Vec3 p = restSkin.vertices.row(v).transpose();
-      double wmax = 0.0;
+      double wmax = 0.0, wsum = 0.0;
       for (int j = 0; j < K; ++j)
-        if (skinWeights.joints(v, j) >= 0) wmax = std::max(wmax, skinWeights.weights(v, j));
+        if (skinWeights.joints(v, j) >= 0) {
+          wmax = std::max(wmax, skinWeights.weights(v, j));
+          wsum += skinWeights.weights(v, j);
+        }
+      const bool rigid = wsum > 0.0 && wmax >= options.muscleRigidShare * wsum;
       eligible.clear();
       for (int j = 0; j < K; ++j)
         if (skinWeights.joints(v, j) >= 0 && skinWeights.weights(v, j) > 0.0 &&
@@ -179,6 +188,9 @@ AnchoredSkin::AnchoredSkin(const Mesh& restSkin, const SkinWeights& skinWeights,
       AnchorCandidate bestAnchor;
       for (int pass = 0; pass < 3 && best < 0; ++pass) {
         for (int k = 0; k < nc; ++k) {
+          const ComponentKind kind = components.components[k].kind;
+          const bool muscle = kind == ComponentKind::MuscleEllipsoid || kind == ComponentKind::MuscleCylinder;
+          if (pass == 0 && muscle && !rigid) continue;
           if (pass == 0) {
             bool ok = false;
             for (int b : eligible) ok |= carries[static_cast<size_t>(k) * nb + b] != 0;
@@ -227,6 +239,7 @@ AnchoredSkin::AnchoredSkin(const Mesh& restSkin, const SkinWeights& skinWeights,
   m.relaxer.build(restSkin, movable, edges);
   r.seamVertices = m.relaxer.numMovable();
   if (options.threads > 0) m.arena = std::make_unique<tbb::task_arena>(options.threads);
+  m.normals.resize(nv, 3);
   m.transforms.resize(nb);
   m.posedCentre.resize(nc);
   m.posedScale.resize(nc);
@@ -274,16 +287,19 @@ void AnchoredSkin::evaluate(const Pose& pose, double* data, RelaxationTrace* tra
                         for (int v = range.begin(); v < range.end(); ++v) {
                           const int k = m.component[v];
                           const Vec3 q = m.anchor.row(v).transpose(), o = m.offset.row(v).transpose();
+                          const Vec3 surface = m.posedAxes[k] * o;
                           out.row(v) =
-                              (m.posedCentre[k] + m.posedAxes[k] * (m.posedScale[k].cwiseProduct(q) + o)).transpose();
+                              (m.posedCentre[k] + m.posedAxes[k] * m.posedScale[k].cwiseProduct(q) + surface).transpose();
+                          const double len = surface.norm();
+                          m.normals.row(v) = (len > 0.0 ? Vec3(surface / len) : Vec3(Vec3::Zero())).transpose();
                         }
                       });
+    m.relaxer.run(out, m.normals, m.options, trace);
   };
   if (m.arena)
     m.arena->execute(body);
   else
     body();
-  m.relaxer.run(out, m.options, trace);
 }
 
 void AnchoredSkin::posedComponents(const Pose& pose, std::vector<AnchoredComponent>& out) const {

@@ -1,8 +1,13 @@
 // Relaxation of the anchored skin toward its rest edge lengths near seams (Schneider & Wilhelms 1998, 4.3).
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 #include "anchored/anchored_internal.h"
 
@@ -81,10 +86,11 @@ void Relaxer::build(const Mesh& rest, const std::vector<char>& movable, const st
       restLength_[fill[slot[b]]++] = edgeRest_[e];
     }
   }
-  double mean = 0.0;
-  for (double l : edgeRest_) mean += l;
-  mean = edgeRest_.empty() ? 0.0 : mean / static_cast<double>(edgeRest_.size());
-  quiet_ = static_cast<double>(edgeRest_.size()) * (1e-9 * mean) * (1e-9 * mean);
+  neighbourSlot_.resize(neighbours_.size());
+  for (size_t k = 0; k < neighbours_.size(); ++k) neighbourSlot_[k] = slot[neighbours_[k]];
+  strained_.assign(movable_.size(), 0);
+  active_.assign(movable_.size(), 0);
+  activeList_.assign(movable_.size(), 0);
   next_.resize(static_cast<Eigen::Index>(movable_.size()), 3);
   backup_.resize(static_cast<Eigen::Index>(movable_.size()), 3);
 }
@@ -93,48 +99,86 @@ void Relaxer::build(const Mesh& rest, const std::vector<char>& movable, const st
 // Iteration
 // ============================================================================
 
-double Relaxer::energy(const Eigen::Map<Points>& x) const {
-  double e = 0.0;
-  for (size_t k = 0; k < edgeA_.size(); ++k) {
-    const double d = (x.row(edgeA_[k]) - x.row(edgeB_[k])).norm() - edgeRest_[k];
-    e += d * d;
-  }
-  return e;
+// Energy of the active vertices' edges: sum of (|e| - |e_rest|)^2, an edge between two active vertices counted
+// once (half from each end). A deterministic reduction (fixed chunks, fixed order).
+double Relaxer::energy(const Eigen::Map<Points>& x, int count) const {
+  return tbb::parallel_deterministic_reduce(
+      tbb::blocked_range<int>(0, count, 2048), 0.0,
+      [&](const tbb::blocked_range<int>& r, double e) {
+        for (int a = r.begin(); a < r.end(); ++a) {
+          const int i = activeList_[a];
+          const Vec3 xv = x.row(movable_[i]).transpose();
+          for (int k = offsets_[i]; k < offsets_[i + 1]; ++k) {
+            const double d = (xv - x.row(neighbours_[k]).transpose()).norm() - restLength_[k];
+            const int j = neighbourSlot_[k];
+            e += (j >= 0 && active_[j] ? 0.5 : 1.0) * d * d;
+          }
+        }
+        return e;
+      },
+      std::plus<double>());
 }
 
-// Each movable vertex moves `step` of the way to the mean of the points that would give each of its edges its
-// rest length (the neighbour plus the rest length along the current edge direction). Jacobi, so the result does
-// not depend on the order; an iteration that raises the energy is undone and retried with half the step.
-void Relaxer::run(Eigen::Map<Points> x, const AnchoredSkinOptions& options, RelaxationTrace* trace) const {
+// Only the strained part of the seams works: a movable vertex with an edge off its rest length by more than 1e-6
+// of it, and its movable neighbours, are active this frame; the others keep their anchored positions. Each active
+// vertex moves `step` of the way to the mean of the points that would give each of its edges its rest length (the
+// neighbour plus the rest length along the current edge direction). Jacobi, so the result does not depend on the
+// order; with relaxTangential the move keeps off the vertex's normal (the skin slides over its components
+// instead of shrinking onto them). An iteration that raises the energy is undone and retried with half the step.
+void Relaxer::run(Eigen::Map<Points> x, const Points& normals, const AnchoredSkinOptions& options,
+                  RelaxationTrace* trace) const {
   if (trace) trace->energy.clear();
   if (movable_.empty() || options.relaxIterations <= 0) return;
-  double e = energy(x);
-  if (trace) trace->energy.push_back(e);
-  if (e <= quiet_) return;  // at rest (rounding only): nothing to relax
-  double step = options.relaxStep;
   const int n = static_cast<int>(movable_.size());
-  for (int it = 0; it < options.relaxIterations && e > 0.0; ++it) {
-    for (int i = 0; i < n; ++i) {
-      const int v = movable_[i];
-      const Vec3 xv = x.row(v).transpose();
-      Vec3 target = Vec3::Zero();
-      int used = 0;
-      for (int k = offsets_[i]; k < offsets_[i + 1]; ++k) {
-        const Vec3 xn = x.row(neighbours_[k]).transpose();
-        const Vec3 d = xv - xn;
-        const double len = d.norm();
-        if (!(len > 0.0)) continue;
-        target += xn + d * (restLength_[k] / len);
-        ++used;
-      }
-      backup_.row(i) = xv.transpose();
-      const Vec3 moved = used ? Vec3(xv + step * (target / used - xv)) : xv;
-      next_.row(i) = moved.transpose();
+  tbb::parallel_for(tbb::blocked_range<int>(0, n, 2048), [&](const tbb::blocked_range<int>& r) {
+    for (int i = r.begin(); i < r.end(); ++i) {
+      const Vec3 xv = x.row(movable_[i]).transpose();
+      char s = 0;
+      for (int k = offsets_[i]; k < offsets_[i + 1] && !s; ++k)
+        s = std::abs((xv - x.row(neighbours_[k]).transpose()).norm() - restLength_[k]) > 1e-6 * restLength_[k];
+      strained_[i] = s;
     }
-    for (int i = 0; i < n; ++i) x.row(movable_[i]) = next_.row(i);
-    const double after = energy(x);
+  });
+  int count = 0;
+  for (int i = 0; i < n; ++i) {
+    char a = strained_[i];
+    for (int k = offsets_[i]; k < offsets_[i + 1] && !a; ++k) a = neighbourSlot_[k] >= 0 && strained_[neighbourSlot_[k]];
+    active_[i] = a;
+    if (a) activeList_[count++] = i;
+  }
+  if (count == 0) return;  // at rest, or every seam moving rigidly: nothing to relax
+  double e = energy(x, count);
+  if (trace) trace->energy.push_back(e);
+  double step = options.relaxStep;
+  for (int it = 0; it < options.relaxIterations && e > 0.0; ++it) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, count, 1024), [&](const tbb::blocked_range<int>& r) {
+      for (int a = r.begin(); a < r.end(); ++a) {
+        const int i = activeList_[a];
+        const Vec3 xv = x.row(movable_[i]).transpose();
+        Vec3 target = Vec3::Zero();
+        int used = 0;
+        for (int k = offsets_[i]; k < offsets_[i + 1]; ++k) {
+          const Vec3 xn = x.row(neighbours_[k]).transpose();
+          const Vec3 d = xv - xn;
+          const double len = d.norm();
+          if (!(len > 0.0)) continue;
+          target += xn + d * (restLength_[k] / len);
+          ++used;
+        }
+        backup_.row(a) = xv.transpose();
+        Vec3 delta = used ? Vec3(step * (target / used - xv)) : Vec3::Zero();
+        if (options.relaxTangential) {
+          const Vec3 nrm = normals.row(movable_[i]).transpose();
+          delta -= delta.dot(nrm) * nrm;
+        }
+        const Vec3 moved = xv + delta;
+        next_.row(a) = moved.transpose();
+      }
+    });
+    for (int a = 0; a < count; ++a) x.row(movable_[activeList_[a]]) = next_.row(a);
+    const double after = energy(x, count);
     if (after > e) {  // undo, halve the step
-      for (int i = 0; i < n; ++i) x.row(movable_[i]) = backup_.row(i);
+      for (int a = 0; a < count; ++a) x.row(movable_[activeList_[a]]) = backup_.row(a);
       step *= 0.5;
       if (trace) trace->energy.push_back(e);
       continue;
