@@ -13,6 +13,7 @@ Stored data (all of it plain data, readable without the add-on):
 - the mesh object's ID property `myoskin_correctives`: JSON {"version": 1, "armature", "correctives": [{"name",
   "bone", "direction", "falloff"}]} from which the drivers are rebuilt after an add or a removal.
 Service layer: no operators, no UI."""
+import contextlib
 import json
 import math
 
@@ -258,6 +259,54 @@ def build_drivers(entries, arm):
         poses.append({"name": e["name"], "bone": bone_index[e["bone"]], "direction": [float(x) for x in e["direction"]],
                       "falloff": float(e["falloff"])})
     return core_loader.core().CorrectiveDrivers(poses)
+
+
+@contextlib.contextmanager
+def weights_baked_for_export(context, skins, arm):
+    """While the body runs (a glTF export): every corrective key of `skins` keyed on each frame of the scene's
+    range with the value its drivers give there, its drivers removed, so an exporter that does not follow a
+    driver chain (Blender 4.x's glTF exporter) writes the morph weights animation. Afterwards the Key's action
+    and the drivers are as before (the drivers rebuilt from the stored correctives)."""
+    targets = [(skin, stored(skin)) for skin in skins]
+    targets = [(skin, entries) for skin, entries in targets if entries and skin.data.shape_keys is not None]
+    if not targets:
+        yield
+        return
+    scene = context.scene
+    frames = list(range(scene.frame_start, scene.frame_end + 1))
+    values = {skin.name: [] for skin, _entries in targets}
+    current = scene.frame_current
+    try:
+        for frame in frames:
+            scene.frame_set(frame)
+            depsgraph = context.evaluated_depsgraph_get()
+            for skin, entries in targets:
+                key = skin.data.shape_keys.evaluated_get(depsgraph)
+                values[skin.name].append([float(key.key_blocks[e["name"]].value) for e in entries])
+    finally:
+        scene.frame_set(current)
+    saved = []
+    try:
+        for skin, entries in targets:
+            key = skin.data.shape_keys
+            ad = key.animation_data or key.animation_data_create()
+            saved.append((skin, entries, ad.action))
+            _remove_drivers(key, [e["name"] for e in entries])
+            ad.action = bpy.data.actions.new(f"{key.name}Correctives")
+            for k, frame in enumerate(frames):
+                for j, e in enumerate(entries):
+                    kb = key.key_blocks[e["name"]]
+                    kb.value = values[skin.name][k][j]
+                    kb.keyframe_insert("value", frame=frame)
+        yield
+    finally:
+        for skin, entries, action in saved:
+            ad = skin.data.shape_keys.animation_data
+            baked = ad.action
+            ad.action = action
+            if baked is not None and baked != action:
+                bpy.data.actions.remove(baked)
+            write_drivers(skin, arm, build_drivers(entries, arm), entries)
 
 
 # ------------------------------------------------------------------------------------------------

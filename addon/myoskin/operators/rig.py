@@ -8,7 +8,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
-from .. import binding, blender_io, core_loader, gltf_io, live, muscle_io, rig_io, runtime
+from .. import binding, blender_io, core_loader, correctives, gltf_io, live, muscle_io, rig_io, runtime
 from .muscles import _MuscleOperator, resolve_extracted, resolve_rig
 from ..state import rig_state
 
@@ -248,7 +248,8 @@ class MYOSKIN_OT_export_gltf(_MuscleOperator, bpy.types.Operator):
         os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
         for obj in context.view_layer.objects:
             obj.select_set(obj == arm or obj in skins)
-        gltf_io.export_gltf(path)
+        with correctives.weights_baked_for_export(context, skins, arm):  # morph weights animation in every exporter
+            gltf_io.export_gltf(path)
         return (f"Exported {', '.join(o.name for o in skins)} + {arm.name} ({len(arm.data.bones)} bones) "
                 f"to {path}")
 
