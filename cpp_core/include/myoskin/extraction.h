@@ -334,7 +334,7 @@ Muscle buildMuscleEnds(const std::vector<MuscleSection>& sections, int bone, con
 // frame transported along the centres; their planes, ellipse angles (unwrapped mod 180 degrees, or 90 with the axes
 // swapped) and semi-axes are smoothed along the muscle (SurfaceOptions::smoothingPasses), so neighbouring rings turn
 // smoothly; a ring reaching through its predecessor's plane is laid parallel to it (or left out when its centre lies
-// behind). Each end tapers over capRings rings parallel to its end ring, shrinking by 1 - t^2, to a pole: the root
+// behind). Each end tapers over capRings rings parallel to its end ring, shrinking by 1 - 3t^2 + 2t^3, to a pole: the root
 // curve point beyond the end lying farthest ahead of the end ring (the origin or insertion when the tendon runs on),
 // or, when none lies half the ring's mean radius ahead, a rounded cap of that height. Not clamped to the skin
 // (extraction does that: SurfaceOptions::containInSkin).

@@ -63,9 +63,11 @@ MuscleShape measureMuscleShape(const Mesh& surface, int ringVertices, const Skin
 // ring's centre by the largest share s in [0, 1] for which the point (1 + margin) s of the way out still lies inside
 // the skin (so it stays `margin` of its own radius inside); the shares are then eroded and averaged over a few
 // neighbours around and along the rings (never above a vertex's own share), so a clamped stretch stays smooth.
-// A ring whose centre lies outside the skin (a tendon running past the end of an open skin) is pulled towards the
-// nearest ring centre inside instead; a pole outside moves towards its ring's anchor the same way. Nothing moves
-// when no ring centre lies inside. Returns the vertices moved.
+// End rings whose centres lie outside the skin (a tendon running past the end of an open skin) are cut off, the end
+// closing at the point where the centre line leaves the skin (the surface keeps the layout, with fewer rings); a ring
+// inside them whose centre lies outside is pulled towards the nearest ring centre inside; a pole outside moves
+// towards its ring's centre the same way. Nothing moves when no ring centre lies inside. Returns the vertices moved
+// or cut off.
 int containMuscleSurface(Mesh& surface, int ringVertices, const SkinWinding& skin, double margin = 0.1);
 
 }  // namespace myoskin

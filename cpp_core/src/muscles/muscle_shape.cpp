@@ -148,8 +148,49 @@ MuscleShape measureMuscleShape(const Mesh& surface, int M, const SkinWinding* sk
 // Containment
 // ============================================================================
 
+namespace {
+
+
+// The surface cut down to rings [first, last] (loftMuscleSurface's layout and triangulation, outward), with the
+// given poles.
+Mesh keepRings(const Mesh& surface, int M, int first, int last, const Vec3& poleO, const Vec3& poleI) {
+  const int R = last - first + 1;
+  Mesh mesh;
+  mesh.vertices.resize(R * M + 2, 3);
+  mesh.vertices.topRows(R * M) = surface.vertices.middleRows(first * M, R * M);
+  mesh.vertices.row(R * M) = poleO.transpose();
+  mesh.vertices.row(R * M + 1) = poleI.transpose();
+  mesh.triangles.resize(2 * M * (R - 1) + 2 * M, 3);
+  int t = 0;
+  for (int r = 0; r + 1 < R; ++r)
+    for (int k = 0; k < M; ++k) {
+      const int a = r * M + k, b = r * M + (k + 1) % M, c = (r + 1) * M + (k + 1) % M, d = (r + 1) * M + k;
+      mesh.triangles.row(t++) << a, b, c;
+      mesh.triangles.row(t++) << a, c, d;
+    }
+  for (int k = 0; k < M; ++k) {
+    mesh.triangles.row(t++) << R * M, (k + 1) % M, k;
+    mesh.triangles.row(t++) << R * M + 1, (R - 1) * M + k, (R - 1) * M + (k + 1) % M;
+  }
+  if (enclosedVolume(mesh.vertices, mesh.triangles) < 0)
+    for (int i = 0; i < mesh.numTriangles(); ++i) std::swap(mesh.triangles(i, 1), mesh.triangles(i, 2));
+  return mesh;
+}
+
+// The last point inside the skin on the segment from `in` (inside) to `out` (bisection).
+Vec3 exitPoint(const SkinWinding& skin, const Vec3& in, const Vec3& out) {
+  double lo = 0.0, hi = 1.0;
+  for (int it = 0; it < 14; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    (skin.inside(in + mid * (out - in)) ? lo : hi) = mid;
+  }
+  return in + lo * (out - in);
+}
+
+}  // namespace
+
 int containMuscleSurface(Mesh& surface, int M, const SkinWinding& skin, double margin) {
-  const int R = ringCount(surface, M, "containMuscleSurface");
+  int R = ringCount(surface, M, "containMuscleSurface");
   if (!(margin >= 0) || !std::isfinite(margin)) throw InputError("containMuscleSurface: margin must be >= 0");
   std::vector<Vec3> centers(R, Vec3::Zero());
   std::vector<char> centerInside(R, 0);
@@ -157,6 +198,21 @@ int containMuscleSurface(Mesh& surface, int M, const SkinWinding& skin, double m
     for (int k = 0; k < M; ++k) centers[r] += vertex(surface, r * M + k);
     centers[r] /= M;
     centerInside[r] = skin.inside(centers[r]);
+  }
+  // End rings whose centres lie outside the skin (a tendon running past an open limb end) are cut off: the end then
+  // closes at the point where the centre line leaves the skin.
+  int first = 0, last = R - 1, cut = 0;
+  while (first < R && !centerInside[first]) ++first;
+  while (last >= 0 && !centerInside[last]) --last;
+  if (first > last) return 0;
+  if (first > 0 || last < R - 1) {
+    const Vec3 poleO = first > 0 ? exitPoint(skin, centers[first], centers[first - 1]) : Vec3(vertex(surface, R * M));
+    const Vec3 poleI = last < R - 1 ? exitPoint(skin, centers[last], centers[last + 1]) : Vec3(vertex(surface, R * M + 1));
+    cut = (R - 1 - last + first) * M;
+    surface = keepRings(surface, M, first, last, poleO, poleI);
+    centers = std::vector<Vec3>(centers.begin() + first, centers.begin() + last + 1);
+    centerInside = std::vector<char>(centerInside.begin() + first, centerInside.begin() + last + 1);
+    R = last - first + 1;
   }
   // Each ring's anchor: its centre, or for a ring whose centre lies outside the skin, the nearest (by ring) centre
   // inside; none when no centre is inside.
@@ -230,7 +286,7 @@ int containMuscleSurface(Mesh& surface, int M, const SkinWinding& skin, double m
     surface.vertices.row(v) = (c + lo * (vertex(surface, v) - c)).transpose();
     ++moved;
   }
-  return moved;
+  return moved + cut;
 }
 
 }  // namespace myoskin

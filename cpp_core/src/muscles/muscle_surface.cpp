@@ -173,8 +173,8 @@ Mesh loftMuscleSurface(const Muscle& muscle, const SurfaceOptions& options) {
   }
 
   // Caps: rings parallel to the end ring, stepping towards the pole (offset t h along the outward normal, sideways
-  // by the smooth step 3t^2 - 2t^3) and shrinking by 1 - t^2 (tangent continuous at the end ring, a cone at the
-  // pole). The pole is the root curve point beyond the end (or the attachment) farthest ahead of the end ring; when
+  // by the smooth step 3t^2 - 2t^3) and shrinking by the Hermite taper 1 - 3t^2 + 2t^3 (tangent continuous at the
+  // end ring, a spindle's point at the pole). The pole is the root curve point beyond the end (or the attachment) farthest ahead of the end ring; when
   // none lies at least half the ring's mean radius ahead, a dome (half an ellipsoid) of that height on the normal.
   const int nk = static_cast<int>(kept.size());
   auto capOf = [&](const Ring& end, const std::vector<Vec3>& endPoints, const Vec3& outward, bool originSide,
@@ -204,7 +204,7 @@ Mesh loftMuscleSurface(const Muscle& muscle, const SurfaceOptions& options) {
       const double w = double(j) / (K + 1);  // a dome: half an ellipsoid, rings evenly spaced in its angle
       const double t = dome ? std::sin(0.5 * kPi * w) : w;
       const Vec3 shift = t * h * outward + (3 * t * t - 2 * t * t * t) * side;
-      const double s = dome ? std::cos(0.5 * kPi * w) : 1 - t * t;
+      const double s = dome ? std::cos(0.5 * kPi * w) : 1 - 3 * t * t + 2 * t * t * t;
       std::vector<Vec3> ring(M);
       for (int k = 0; k < M; ++k) ring[k] = end.center + shift + s * (endPoints[k] - end.center);
       caps.push_back(std::move(ring));
