@@ -19,6 +19,7 @@ namespace myoskin {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+constexpr int kBisections = 26;  // inside/outside bisection steps: 2^-26 of a ring radius, far below float noise
 
 // Number of rings of a surface with loftMuscleSurface's layout (R rings of M, then two poles); throws otherwise.
 int ringCount(const Mesh& surface, int M, const char* who) {
@@ -180,7 +181,7 @@ Mesh keepRings(const Mesh& surface, int M, int first, int last, const Vec3& pole
 // The last point inside the skin on the segment from `in` (inside) to `out` (bisection).
 Vec3 exitPoint(const SkinWinding& skin, const Vec3& in, const Vec3& out) {
   double lo = 0.0, hi = 1.0;
-  for (int it = 0; it < 14; ++it) {
+  for (int it = 0; it < kBisections; ++it) {
     const double mid = 0.5 * (lo + hi);
     (skin.inside(in + mid * (out - in)) ? lo : hi) = mid;
   }
@@ -231,7 +232,7 @@ int containMuscleSurface(Mesh& surface, int M, const SkinWinding& skin, double m
       const Vec3 c = centers[anchor[r]], d = (1.0 + margin) * (vertex(surface, v) - c);
       if (skin.inside(c + d)) continue;
       double lo = 0.0, hi = 1.0;
-      for (int it = 0; it < 14; ++it) {
+      for (int it = 0; it < kBisections; ++it) {
         const double mid = 0.5 * (lo + hi);
         (skin.inside(c + mid * d) ? lo : hi) = mid;
       }
@@ -279,7 +280,7 @@ int containMuscleSurface(Mesh& surface, int M, const SkinWinding& skin, double m
     const Vec3 c = centers[r], d = (1.0 + margin) * (vertex(surface, v) - c);
     if (skin.inside(c + d)) continue;
     double lo = 0.0, hi = 1.0;
-    for (int it = 0; it < 14; ++it) {
+    for (int it = 0; it < kBisections; ++it) {
       const double mid = 0.5 * (lo + hi);
       (skin.inside(c + mid * d) ? lo : hi) = mid;
     }

@@ -16,7 +16,7 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr int kLeafSize = 8;
-constexpr double kFarFactor = 2.5;  // a cluster counts as one dipole beyond this times its radius
+constexpr double kFarFactor = 5.0;  // a cluster counts as one dipole beyond this times its radius (error ~ its square)
 constexpr int kMaxDepth = 64;
 
 // Closest point on triangle (a, b, c) to p (Ericson, Real-Time Collision Detection 5.1.5).
