@@ -6,6 +6,7 @@
 #include "bindings.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
+#include "myoskin/muscle_shape.h"
 #include "myoskin/subdivide.h"
 
 namespace myoskin::python {
@@ -205,7 +206,7 @@ void bindExtraction(py::module_& m) {
 
   m.def(
       "reattach_muscle",
-      [](Muscle muscle, int samplesPerEnd, int ringVertices, int capRings) {
+      [](Muscle muscle, int samplesPerEnd, int ringVertices, int capRings, const Character* character) {
         if (samplesPerEnd < 1 || ringVertices < 3 || capRings < 1)
           throw InputError("reattach_muscle: samples_per_end >= 1, ring_vertices >= 3, cap_rings >= 1");
         EndOptions ends;
@@ -216,13 +217,20 @@ void bindExtraction(py::module_& m) {
         {
           py::gil_scoped_release release;
           reattachMuscle(muscle, ends, surface);
+          if (character) {  // kept inside the skin at rest, as extraction does
+            validateMesh(character->mesh, "reattach_muscle: character mesh");
+            const SkinWinding skin(character->mesh.vertices, character->mesh.triangles);
+            containMuscleSurface(muscle.surface, ringVertices, skin, surface.skinMargin);
+          }
         }
         return muscle;
       },
       py::arg("muscle"), py::arg("samples_per_end") = EndOptions{}.samplesPerEnd,
       py::arg("ring_vertices") = SurfaceOptions{}.ringVertices, py::arg("cap_rings") = SurfaceOptions{}.capRings,
+      py::arg("character") = nullptr,
       "A copy of `muscle` re-attached to its (moved) origin/insertion positions: Hermite ends of the root curve "
-      "rebuilt, section u recomputed by arc length, surface re-lofted; the sections are kept.");
+      "rebuilt, section u recomputed by arc length, surface re-lofted; the sections are kept. With `character`, the "
+      "surface is kept inside its skin at rest as extraction does (muscle_shape.h containMuscleSurface).");
 
   m.def(
       "subdivide",

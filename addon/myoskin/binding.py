@@ -138,7 +138,8 @@ def bind(context, skins, arm):
         raise ValueError(f"Armature '{arm.name}' is not in the view layer: link it to bind")
     combined = blender_io.combined_character(skins, arm)
     character = combined.character
-    muscles = [core.reattach_muscle(m) for m in muscle_io.state_to_core(arm)]
+    # Re-lofted and kept inside the skin at rest, as extraction keeps them (the hybrid weights use these surfaces).
+    muscles = [core.reattach_muscle(m, character=character) for m in muscle_io.state_to_core(arm)]
     if not muscles:
         raise ValueError(f"Every muscle of '{arm.name}' is disabled: enable at least one to bind")
     rig = core.MuscleRig(character, muscles)

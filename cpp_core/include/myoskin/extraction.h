@@ -73,7 +73,13 @@ struct EndOptions {
 
 struct SurfaceOptions {
   int ringVertices = 32;        // vertices around each lofted ellipse
-  int capRings = 8;             // rings of each Hermite-tapered cap (the pole vertex comes after them)
+  int capRings = 8;             // rings of each tapered cap (the pole vertex comes after them)
+  int smoothingPasses = 2;      // 1-2-1 passes along the muscle over the rings' plane normals, ellipse angles (unwrapped)
+                                // and semi-axes, after a median of three over the centres and semi-axes (a single
+                                // outlying section), so neighbouring rings turn and grow smoothly; 0 = the sections as cut
+  bool containInSkin = true;    // extraction: pull every lofted surface inside the skin (containMuscleSurface,
+                                // muscle_shape.h), so that at rest no muscle vertex lies outside it
+  double skinMargin = 0.1;      // ... keeping each ring vertex this share of its ring radius inside the skin
 };
 
 struct ExtractionOptions {
@@ -323,9 +329,15 @@ Muscle buildMuscleEnds(const MuscleChain& chain, const std::vector<SectionBumps>
 Muscle buildMuscleEnds(const std::vector<MuscleSection>& sections, int bone, const Skeleton& skeleton,
                        const EndOptions& options = {});
 
-// Lofts the muscle's sections into a closed, outward-oriented, watertight triangle mesh with
-// Hermite-tapered caps to the origin and insertion (one pole vertex each). Rings follow a frame
-// transported along the centres, so ellipses whose axis a turns do not twist the loft.
+// Lofts the muscle's sections into a closed, outward-oriented, watertight triangle mesh (#rings x ringVertices ring
+// vertices from the origin end to the insertion end, then the origin pole and the insertion pole). Rings follow a
+// frame transported along the centres; their planes, ellipse angles (unwrapped mod 180 degrees, or 90 with the axes
+// swapped) and semi-axes are smoothed along the muscle (SurfaceOptions::smoothingPasses), so neighbouring rings turn
+// smoothly; a ring reaching through its predecessor's plane is laid parallel to it (or left out when its centre lies
+// behind). Each end tapers over capRings rings parallel to its end ring, shrinking by 1 - 3t^2 + 2t^3, to a pole: the root
+// curve point beyond the end lying farthest ahead of the end ring (the origin or insertion when the tendon runs on),
+// or, when none lies half the ring's mean radius ahead, a rounded cap of that height. Not clamped to the skin
+// (extraction does that: SurfaceOptions::containInSkin).
 Mesh loftMuscleSurface(const Muscle& muscle, const SurfaceOptions& options = {});
 
 // Carries a muscle that spans no real joint over its nearer one (EndOptions::spanCarry), then rebuilds its root

@@ -12,6 +12,7 @@
 #include "muscles/muscle_util.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
+#include "myoskin/muscle_shape.h"
 
 namespace myoskin {
 
@@ -201,6 +202,12 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     m.wrap.radius /= factor;
     for (Eigen::Index v = 0; v < m.surface.vertices.rows(); ++v)
       m.surface.vertices.row(v) = fromBody(m.surface.vertices.row(v).transpose()).transpose();
+  }
+  // At rest every muscle lies inside the skin: the whole skin as given (eyes, hooves and props included: what is seen).
+  if (options.buildSurfaces && options.surface.containInSkin && !result.muscles.empty()) {
+    const SkinWinding skin(character.mesh.vertices, character.mesh.triangles);
+    for (Muscle& m : result.muscles)
+      containMuscleSurface(m.surface, std::max(3, options.surface.ringVertices), skin, options.surface.skinMargin);
   }
   ExtractionReport& rep = result.report;
   rep.limbRadius = limbRadius;
