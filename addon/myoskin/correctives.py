@@ -267,7 +267,7 @@ def weights_baked_for_export(context, skins, arm):
     range with the value its drivers give there, its drivers removed, so an exporter that does not follow a
     driver chain (Blender 4.x's glTF exporter) writes the morph weights animation. Afterwards the Key's action
     and the drivers are as before (the drivers rebuilt from the stored correctives)."""
-    targets = [(skin, stored(skin)) for skin in skins]
+    targets = [(skin, stored(skin)[1]) for skin in skins]
     targets = [(skin, entries) for skin, entries in targets if entries and skin.data.shape_keys is not None]
     if not targets:
         yield
