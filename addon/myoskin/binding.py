@@ -143,6 +143,9 @@ def bind(context, skins, arm):
     if not muscles:
         raise ValueError(f"Every muscle of '{arm.name}' is disabled: enable at least one to bind")
     rig = core.MuscleRig(character, muscles)
+    stuffing = core_skin.stuffing_of(arm) if state.deformer == 'ANCHORED' else []
+    if stuffing:  # the core's own checks of the artist's ellipsoids, before anything changes
+        core.AnchoredSkin(character, muscles, stuffing=stuffing)
     joints, weights = hybrid_weights(core, character, rig, state.max_influences)
     if joints.shape[0] != character.num_vertices or weights.shape[0] != character.num_vertices:
         raise ValueError(f"Bind: {joints.shape[0]} weight rows for the {character.num_vertices} vertices of "
@@ -188,6 +191,7 @@ def bind(context, skins, arm):
         "joint_names": list(rig.joint_names), "muscles": core.muscles_to_json(muscles),
         "surfaces": [surfaces.get(m.name, "") for m in muscles],
         "deformer": "anchored" if state.deformer == 'ANCHORED' else "joints", "core_skin_was": core_skin_was,
+        "stuffing": stuffing,
     }
     write_bind_record(arm, record)
     set_rig_skins(arm, skins)

@@ -14,6 +14,7 @@ Layer: service (imports blender_io, core_loader).
 
 import bpy
 import numpy as np
+from mathutils import Matrix
 
 from . import blender_io
 
@@ -113,3 +114,55 @@ class MeshFrame:
         """#V by 3 mesh-space offsets of armature-space positions `posed` from this mesh's rest."""
         posed = np.asarray(posed, dtype=np.float64)
         return posed @ self.to_mesh[:3, :3].T + self.to_mesh[:3, 3] - self.rest_local
+
+
+# ------------------------------------------------------------------------------------------------
+# Stuffing: ellipsoids the artist places (empties) for the anchored skin
+# ------------------------------------------------------------------------------------------------
+
+STUFFING_KEY = "myoskin_stuffing"  # ID property marking an Empty as a stuffing ellipsoid
+
+
+def add_stuffing(context, arm, bone_name):
+    """A stuffing ellipsoid for the anchored skin: an Empty (sphere display) parented to the bone, at the bone's
+    middle, radii a quarter of the bone's length; the artist moves, turns and scales it. Returns the Empty."""
+    bone = arm.data.bones.get(bone_name)
+    if bone is None:
+        raise ValueError(f"Armature '{arm.name}' has no bone '{bone_name}'")
+    empty = bpy.data.objects.new(f"Stuffing.{bone_name}", None)
+    empty.empty_display_type = 'SPHERE'
+    empty.empty_display_size = 1.0
+    empty[STUFFING_KEY] = True
+    (arm.users_collection[0] if arm.users_collection else context.scene.collection).objects.link(empty)
+    empty.parent, empty.parent_type, empty.parent_bone = arm, 'BONE', bone_name
+    # Bone parenting hangs the child at the bone's tail: the bone's middle is half its length back along Y.
+    empty.matrix_parent_inverse = Matrix.Identity(4)
+    empty.location = (0.0, -0.5 * bone.length, 0.0)
+    empty.scale = (0.25 * bone.length,) * 3
+    return empty
+
+
+def stuffing_of(arm):
+    """The stuffing ellipsoids of an armature as the core's component dicts ({"kind": "stuffing", "name", "bone",
+    "center", "axes", "radii"}, armature space at rest): every Empty marked STUFFING_KEY parented to one of its
+    bones, its rest place the bone's rest matrix times the Empty's transform under it, its radii the Empty's
+    display size times its scale (a zero or negative scale is refused with the Empty's name)."""
+    out = []
+    for obj in sorted(bpy.data.objects, key=lambda o: o.name):
+        if obj.type != 'EMPTY' or not obj.get(STUFFING_KEY) or obj.parent != arm:
+            continue
+        bone = arm.data.bones.get(obj.parent_bone) if obj.parent_type == 'BONE' else None
+        if bone is None:
+            raise ValueError(f"Stuffing '{obj.name}' must be parented to a bone of '{arm.name}' (Parent Type: Bone)")
+        tail = Matrix.Translation((0.0, bone.length, 0.0))
+        rest = np.array(bone.matrix_local @ tail @ obj.matrix_parent_inverse @ obj.matrix_basis)
+        columns = rest[:3, :3]
+        scale = np.linalg.norm(columns, axis=0)
+        if not np.all(scale > 1e-12) or not np.all(np.isfinite(rest)):
+            raise ValueError(f"Stuffing '{obj.name}' has a zero or invalid scale")
+        axes = columns / scale
+        if np.linalg.det(axes) < 0:
+            raise ValueError(f"Stuffing '{obj.name}' is mirrored (negative scale): use positive scales")
+        out.append({"kind": "stuffing", "name": obj.name, "bone": bone.name, "center": rest[:3, 3].tolist(),
+                    "axes": axes.tolist(), "radii": (scale * obj.empty_display_size).tolist()})
+    return out

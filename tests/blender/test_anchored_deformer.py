@@ -70,7 +70,8 @@ def core_anchored(arm, skin):
     character = blender_io.character_from_blender(skin, arm)
     muscles = list(rig.rig.muscles)
     assert len(muscles) > 0
-    posed = np.asarray(core().AnchoredSkin(character, muscles).evaluate(pose))
+    stuffing = module("core_skin").stuffing_of(arm)
+    posed = np.asarray(core().AnchoredSkin(character, muscles, stuffing=stuffing).evaluate(pose))
     to_mesh = np.linalg.inv(blender_io.mesh_to_armature_matrix(skin, arm))
     return posed @ to_mesh[:3, :3].T + to_mesh[:3, 3]
 
@@ -137,6 +138,47 @@ def test_pc2_bake_equals_blender():
     assert frames.shape == (5, len(skin.data.vertices), 3)
     bpy.context.scene.frame_set(4)
     assert np.abs(frames[3] - evaluated(skin)).max() <= 1e-5 * size_of(skin)
+
+
+def test_stuffing_empty_is_anchored_to_and_blender_equals_the_core():
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    skin = bpy.context.view_layer.objects.active
+    arm = skin.parent
+    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
+    assert bpy.ops.myoskin.add_stuffing(bone="upper_arm") == {'FINISHED'}
+    empty = bpy.data.objects["Stuffing.upper_arm"]
+    bone = arm.data.bones["upper_arm"]
+    head, tail = np.array(bone.head_local), np.array(bone.tail_local)
+    rest = module("blender_io").mesh_vertices(skin.data)
+    t = np.clip((rest - head) @ (tail - head) / np.dot(tail - head, tail - head), 0.0, 1.0)
+    near = (t > 0.3) & (t < 0.7)
+    radius = float(np.median(np.linalg.norm(rest[near] - (head + t[near, None] * (tail - head)), axis=1)))
+    empty.scale = (0.9 * radius, 0.35 * bone.length, 0.9 * radius)  # reaches nearer the skin than the capsule
+    bpy.context.view_layer.update()
+    centre = module("core_skin").stuffing_of(arm)[0]["center"]
+    placed = np.array(arm.matrix_world.inverted() @ empty.matrix_world.translation)
+    assert np.abs(np.array(centre) - placed).max() <= 1e-6 * size_of(skin), "the rest place is where the Empty is"
+    bpy.context.view_layer.objects.active = skin
+    arm.myoskin.deformer = 'ANCHORED'
+    assert bpy.ops.myoskin.bind() == {'FINISHED'}
+    assert len(module("binding").read_bind_record(arm)["stuffing"]) == 1
+    anchored = module("live").live_rig(arm).anchored[0][2]
+    kinds = [c["kind"] for c in anchored.components]
+    index = kinds.index("stuffing")
+    anchored_to_it = int(np.sum(np.asarray(anchored.vertex_component) == index))
+    print(f"stuffing on the upper arm: {anchored_to_it} of {len(rest)} skin vertices anchor to it")
+    assert anchored_to_it > 100
+    pb = arm.pose.bones["upper_arm"]
+    pb.rotation_mode = 'XYZ'
+    pb.rotation_euler = (0.0, 0.0, np.radians(40.0))
+    flex(arm, 70.0)
+    got = evaluated(skin)
+    assert np.abs(got - core_anchored(arm, skin)).max() <= 1e-5 * size_of(skin)
+    empty.scale = (-1.0, 1.0, 1.0)
+    msg = runner.operator_error(bpy.ops.myoskin.bind)
+    assert "mirrored" in msg, msg
+    assert arm.myoskin.bound, "a refused Bind keeps the current bind"
 
 
 def test_unbind_gives_everything_back():

@@ -8,7 +8,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
-from .. import binding, blender_io, core_loader, correctives, gltf_io, live, muscle_io, rig_io, runtime
+from .. import binding, blender_io, core_loader, core_skin, correctives, gltf_io, live, muscle_io, rig_io, runtime
 from .muscles import _MuscleOperator, resolve_extracted, resolve_rig
 from ..state import rig_state
 
@@ -35,6 +35,8 @@ class MYOSKIN_OT_bind(_MuscleOperator, bpy.types.Operator):
                 core.MuscleRig(skeleton, muscles)  # the rig's own checks (ends, wraps, joints)
             for skin in binding.bound_skins(arm):
                 binding.check_backup(skin)
+            if state.deformer == 'ANCHORED':
+                core_skin.stuffing_of(arm)  # the artist's stuffing Empties are usable
         wm = context.window_manager
         wm.progress_begin(0, 2)
         try:
@@ -66,6 +68,23 @@ class MYOSKIN_OT_unbind(_MuscleOperator, bpy.types.Operator):
         if problem:  # the weights came back from each mesh's backup; Armature modifiers Bind added may remain
             return 'WARNING', f"{message}; {problem}: check the meshes' Armature modifiers"
         return message
+
+
+class MYOSKIN_OT_add_stuffing(_MuscleOperator, bpy.types.Operator):
+    """Add a stuffing ellipsoid for the Anchored Skin deformer: an Empty on the bone (move, turn and scale it;
+    Bind again to use it)"""
+    bl_idname = "myoskin.add_stuffing"
+    bl_label = "Add Stuffing"
+
+    bone: StringProperty(name="Bone", description="The bone that carries it (default: the active bone)")
+
+    def run(self, context):
+        _skins, arm = resolve_rig(context.active_object)
+        name = self.bone or (arm.data.bones.active.name if arm.data.bones.active else "")
+        if not name:
+            raise ValueError(f"Give a bone of '{arm.name}' (or make one active)")
+        empty = core_skin.add_stuffing(context, arm, name)
+        return f"Added stuffing '{empty.name}' on '{name}': shape it, then Bind with the Anchored Skin deformer"
 
 
 class MYOSKIN_OT_clear_error(bpy.types.Operator):
@@ -367,5 +386,5 @@ def bake_skin_frames(context, skins, arm, start, end, skin_solve=False, jiggle=F
     return out
 
 
-classes = (MYOSKIN_OT_bind, MYOSKIN_OT_unbind, MYOSKIN_OT_bake_action, MYOSKIN_OT_export_gltf,
+classes = (MYOSKIN_OT_bind, MYOSKIN_OT_unbind, MYOSKIN_OT_add_stuffing, MYOSKIN_OT_bake_action, MYOSKIN_OT_export_gltf,
            MYOSKIN_OT_bake_pc2, MYOSKIN_OT_clear_error)

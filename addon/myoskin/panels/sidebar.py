@@ -214,6 +214,8 @@ class MYOSKIN_PT_bind(_WorkflowStep, bpy.types.Panel):
         row.operator("myoskin.bind", icon='LINKED')
         row.operator("myoskin.unbind", icon='UNLINKED')
         layout.prop(state, "deformer")
+        if state.deformer == 'ANCHORED':
+            layout.operator("myoskin.add_stuffing", icon='SPHERE')
         layout.prop(state, "max_influences")
         layout.prop(state, "preserve_volume")
         if state.bound:
