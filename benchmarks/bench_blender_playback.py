@@ -11,6 +11,9 @@ animated elbow + shoulder on the synthetic arm at ~50k vertices, in one run:
     bound, baked       muscle joints baked to the Action, live update off (what a farm / no add-on plays)
     bound, PC2 cache   the skin baked to a PC2 by the core and played by a Mesh Cache modifier, the Armature
                        modifier muted (Bake PC2 with Add Mesh Cache Modifier; no add-on needed to play)
+    anchored, live     Bind with the Anchored Skin deformer: the core's AnchoredSkin per frame, written as offsets
+                       for the Core Skin (Geometry Nodes) modifier by the live handlers
+    plain, Preserve Volume  the plain character with the Armature modifier's Preserve Volume (what Bind sets)
 
 Timing: every bound case plays the same 100 frames in each of --repeats passes (cases interleaved, their
 order reversed every other pass), alternating in chunks of 10 frames with the same frames of the baseline
@@ -127,6 +130,21 @@ def main():
             if coll != cached_scene.collection:
                 coll.objects.unlink(obj)
 
+    # The same character bound with the anchored deformer, in a fourth scene.
+    anchored_scene = bpy.data.scenes.new("Anchored")
+    anchored_scene.frame_start, anchored_scene.frame_end = 1, args.frames
+    a_arm, a_skin = add_character(core, blender_io, bpy.context.scene, "AnchoredArm", args.rings, args.frames)
+    bpy.context.view_layer.objects.active = a_skin
+    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
+    a_arm.myoskin.deformer = 'ANCHORED'
+    assert bpy.ops.myoskin.bind() == {'FINISHED'}
+    a_arm.myoskin.collection.hide_viewport = True
+    for obj in [a_arm, a_skin] + list(a_arm.myoskin.collection.objects):
+        anchored_scene.collection.objects.link(obj)
+        for coll in list(obj.users_collection):
+            if coll != anchored_scene.collection:
+                coll.objects.unlink(obj)
+
     # The plain character with Preserve Volume (what Bind sets by default), to separate the dual-quaternion
     # blend's own cost from Myoskin's.
     pv_scene = bpy.data.scenes.new("SkeletonOnlyPV")
@@ -146,7 +164,8 @@ def main():
 
     cases = [("bound, live", (True, False)), ("bound, live, 2-pass", (True, False, True)),
              ("bound, live+surfaces", (True, True)), ("bound, baked", (False, False)),
-             ("bound, PC2 cache", cached_scene), ("plain, Preserve Volume", pv_scene)]
+             ("bound, PC2 cache", cached_scene), ("anchored, live", anchored_scene),
+             ("plain, Preserve Volume", pv_scene)]
     passes = {name: [] for name, _c in cases}
     for r in range(args.repeats):
         for name, config in (cases if r % 2 == 0 else cases[::-1]):
