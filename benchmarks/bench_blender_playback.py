@@ -9,6 +9,7 @@ animated elbow + shoulder on the synthetic arm at ~50k vertices, in one run:
                        evaluates twice (the route for IK / constraint-driven skeletons)
     bound, live+surf   the same with the muscle surfaces shown (written every frame)
     bound, baked       muscle joints baked to the Action, live update off (what a farm / no add-on plays)
+    bound, baked, linear  the same with Preserve Volume off (linear blending, as the paper)
     bound, PC2 cache   the skin baked to a PC2 by the core and played by a Mesh Cache modifier, the Armature
                        modifier muted (Bake PC2 with Add Mesh Cache Modifier; no add-on needed to play)
     anchored, live     Bind with the Anchored Skin deformer: the core's AnchoredSkin per frame, written as offsets
@@ -157,13 +158,17 @@ def main():
     constraint = arm.pose.bones["forearm"].constraints.new('LIMIT_ROTATION')  # x towards 0 by 2 %
     constraint.use_limit_x, constraint.min_x, constraint.max_x, constraint.influence = True, 0.0, 0.0, 0.02
 
-    def configure(live, surfaces, constrained=False):
+    armature_mod = next(m for m in skin.modifiers if m.type == 'ARMATURE')
+
+    def configure(live, surfaces, constrained=False, preserve_volume=True):
         state.live = live
         state.collection.hide_viewport = not surfaces
         constraint.mute = not constrained
+        armature_mod.use_deform_preserve_volume = preserve_volume
 
     cases = [("bound, live", (True, False)), ("bound, live, 2-pass", (True, False, True)),
              ("bound, live+surfaces", (True, True)), ("bound, baked", (False, False)),
+             ("bound, baked, linear", (False, False, False, False)),
              ("bound, PC2 cache", cached_scene), ("anchored, live", anchored_scene),
              ("plain, Preserve Volume", pv_scene)]
     passes = {name: [] for name, _c in cases}
