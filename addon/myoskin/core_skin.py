@@ -18,6 +18,7 @@ from mathutils import Matrix
 
 from . import blender_io
 
+PINNED_GROUP = "myoskin_pinned"  # a vertex group on an anchored skin: vertices (weight > 0.5) relaxation never moves
 MODIFIER = "Myoskin Core Skin"
 NODE_GROUP = "Myoskin Core Skin"
 OFFSET_ATTRIBUTE = "myoskin_offset"

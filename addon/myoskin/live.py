@@ -57,8 +57,10 @@ class LiveRig:
                 obj = bpy.data.objects.get(name) if isinstance(name, str) else None
                 if obj is None or obj.type != 'MESH':
                     raise ValueError(f"the anchored skin '{name}' is missing: bind again")
+                pinned = np.flatnonzero(blender_io.vertex_group_weights(obj, core_skin.PINNED_GROUP) > 0.5)
                 anchored = core.AnchoredSkin(blender_io.character_from_blender(obj, arm_obj), muscles,
-                                             stuffing=list(record.get("stuffing") or []))
+                                             stuffing=list(record.get("stuffing") or []),
+                                             pinned=[int(i) for i in pinned])
                 self.anchored.append((name, core_skin.MeshFrame(obj, arm_obj), anchored))
         self.last_pose = None  # the skeleton pose the joints were last written for
         self.last_with_surfaces = False  # whether the muscle surfaces were written with them

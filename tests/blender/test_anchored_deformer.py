@@ -181,6 +181,25 @@ def test_stuffing_empty_is_anchored_to_and_blender_equals_the_core():
     assert arm.myoskin.bound, "a refused Bind keeps the current bind"
 
 
+def test_pinned_group_keeps_vertices_out_of_the_relaxation():
+    arm, skin, _ = anchored_arm()
+    flex(arm, 110.0)
+    free = evaluated(skin)
+    anchored = module("live").live_rig(arm).anchored[0][2]
+    assert anchored.report["seam_vertices"] > 0
+    group = skin.vertex_groups.new(name=module("core_skin").PINNED_GROUP)
+    group.add(list(range(len(skin.data.vertices))), 1.0, 'REPLACE')
+    assert bpy.ops.myoskin.bind() == {'FINISHED'}
+    flex(arm, 110.0)
+    pinned = evaluated(skin)
+    rig = module("live").live_rig(arm)
+    pose = module("live").evaluated_pose(arm, rig, bpy.context.evaluated_depsgraph_get())
+    character = module("blender_io").character_from_blender(skin, arm)
+    unrelaxed = np.asarray(core().AnchoredSkin(character, list(rig.rig.muscles), relax_iterations=0).evaluate(pose))
+    assert np.abs(pinned - unrelaxed).max() <= 1e-5 * size_of(skin), "every vertex pinned: no relaxation"
+    assert np.abs(free - pinned).max() > 1e-5 * size_of(skin), "the relaxation moved some vertices before"
+
+
 def test_unbind_gives_everything_back():
     arm, skin, original = anchored_arm()
     flex(arm, 80.0)
