@@ -58,6 +58,30 @@ def operator_error(op, **kwargs):
     return ""
 
 
+def weights_of(skin):
+    """{group name: {vertex: weight}}: the exact state of every vertex group of a mesh object."""
+    names = {g.index: g.name for g in skin.vertex_groups}
+    out = {n: {} for n in names.values()}
+    for v in skin.data.vertices:
+        for g in v.groups:
+            out[names[g.group]][v.index] = g.weight
+    return out
+
+
+def evaluated(skin):
+    """#V by 3 evaluated (deformed) vertices of a mesh object, mesh space, after a view-layer update."""
+    import bpy
+    bpy.context.view_layer.update()
+    return addon_module("blender_io").evaluated_vertices(skin)
+
+
+def size_of(skin):
+    """The diagonal of a mesh object's rest bounding box (the size tolerances are relative to)."""
+    import numpy as np
+    rest = addon_module("blender_io").mesh_vertices(skin.data)
+    return float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0)))
+
+
 def is_bpy_module():
     """True under the `bpy` module (a Python interpreter), False inside a Blender executable."""
     return os.environ.get("MYOSKIN_BPY_MODULE") == "1"

@@ -17,28 +17,12 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.environ.get("MYOSKIN_SOURCE_DIR", os.path.join(os.path.dirname(
     os.path.abspath(__file__)), "..", "..")), "tests", "blender"))
 import blender_test_runner as runner  # noqa: E402
-from blender_test_runner import addon_module as module, core  # noqa: E402
+from blender_test_runner import addon_module as module, core, evaluated, size_of, weights_of  # noqa: E402
 
 TMP = tempfile.mkdtemp(prefix="myoskin_test_anchored_")
 
 
-def weights_of(skin):
-    names = {g.index: g.name for g in skin.vertex_groups}
-    out = {n: {} for n in names.values()}
-    for v in skin.data.vertices:
-        for g in v.groups:
-            out[names[g.group]][v.index] = g.weight
-    return out
 
-
-def evaluated(skin):
-    bpy.context.view_layer.update()
-    return module("blender_io").evaluated_vertices(skin)
-
-
-def size_of(skin):
-    rest = module("blender_io").mesh_vertices(skin.data)
-    return float(np.linalg.norm(rest.max(axis=0) - rest.min(axis=0)))
 
 
 def anchored_arm():

@@ -19,25 +19,12 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.environ.get("MYOSKIN_SOURCE_DIR", os.path.join(os.path.dirname(
     os.path.abspath(__file__)), "..", "..")), "tests", "blender"))
 import blender_test_runner as runner  # noqa: E402
-from blender_test_runner import addon_module as module, core, operator_error  # noqa: E402
+from blender_test_runner import addon_module as module, core, evaluated, operator_error, weights_of  # noqa: E402
 
 MUSCULAR = "characters/makehuman_muscular_male/makehuman_muscular_male.glb"
 TMP = tempfile.mkdtemp(prefix="myoskin_test_bind_")
 
 
-def weights_of(skin):
-    """{group name: {vertex: weight}} — the exact state of every vertex group."""
-    names = {g.index: g.name for g in skin.vertex_groups}
-    out = {n: {} for n in names.values()}
-    for v in skin.data.vertices:
-        for g in v.groups:
-            out[names[g.group]][v.index] = g.weight
-    return out
-
-
-def evaluated(skin):
-    bpy.context.view_layer.update()
-    return module("blender_io").evaluated_vertices(skin)
 
 
 def bound_arm(seed=1):
