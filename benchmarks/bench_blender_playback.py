@@ -114,37 +114,36 @@ def main():
           f"bones + {joints} muscle joints ({len(state.muscles)} muscles), {args.frames} frames; bind "
           f"{bind_seconds:.2f} s; {args.repeats} interleaved passes, per-frame best", flush=True)
 
-    # The same character in a third scene, its skin baked to a PC2 that a Mesh Cache modifier plays.
-    cached_scene = bpy.data.scenes.new("Cached")
-    cached_scene.frame_start, cached_scene.frame_end = 1, args.frames
-    cached_arm, cached_skin = add_character(core, blender_io, bpy.context.scene, "CachedArm", args.rings, args.frames)
-    bpy.context.view_layer.objects.active = cached_skin
-    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'} and bpy.ops.myoskin.bind() == {'FINISHED'}
-    import tempfile
-    pc2 = os.path.join(tempfile.mkdtemp(prefix="myoskin_bench_"), "arm.pc2")
-    assert bpy.ops.myoskin.bake_pc2(filepath=pc2, frame_start=1, frame_end=args.frames, add_modifier=True) == {'FINISHED'}
-    cached_arm.myoskin.live = False
-    cached_arm.myoskin.collection.hide_viewport = True
-    for obj in [cached_arm, cached_skin] + list(cached_arm.myoskin.collection.objects):
-        cached_scene.collection.objects.link(obj)
-        for coll in list(obj.users_collection):
-            if coll != cached_scene.collection:
-                coll.objects.unlink(obj)
+    def bound_in_own_scene(name, deformer='JOINTS', after_bind=None):
+        """The character extracted and bound (with `deformer`) in the context scene, `after_bind(arm)` run, then
+        moved with its muscle objects into a new scene of its own (surfaces hidden); returns the scene."""
+        scene = bpy.data.scenes.new(name)
+        scene.frame_start, scene.frame_end = 1, args.frames
+        own_arm, own_skin = add_character(core, blender_io, bpy.context.scene, name + "Arm", args.rings, args.frames)
+        bpy.context.view_layer.objects.active = own_skin
+        assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
+        own_arm.myoskin.deformer = deformer
+        assert bpy.ops.myoskin.bind() == {'FINISHED'}
+        if after_bind is not None:
+            after_bind(own_arm)
+        own_arm.myoskin.collection.hide_viewport = True
+        for obj in [own_arm, own_skin] + list(own_arm.myoskin.collection.objects):
+            scene.collection.objects.link(obj)
+            for coll in list(obj.users_collection):
+                if coll != scene.collection:
+                    coll.objects.unlink(obj)
+        return scene
 
-    # The same character bound with the anchored deformer, in a fourth scene.
-    anchored_scene = bpy.data.scenes.new("Anchored")
-    anchored_scene.frame_start, anchored_scene.frame_end = 1, args.frames
-    a_arm, a_skin = add_character(core, blender_io, bpy.context.scene, "AnchoredArm", args.rings, args.frames)
-    bpy.context.view_layer.objects.active = a_skin
-    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
-    a_arm.myoskin.deformer = 'ANCHORED'
-    assert bpy.ops.myoskin.bind() == {'FINISHED'}
-    a_arm.myoskin.collection.hide_viewport = True
-    for obj in [a_arm, a_skin] + list(a_arm.myoskin.collection.objects):
-        anchored_scene.collection.objects.link(obj)
-        for coll in list(obj.users_collection):
-            if coll != anchored_scene.collection:
-                coll.objects.unlink(obj)
+    def bake_to_pc2(own_arm):
+        import tempfile
+        pc2 = os.path.join(tempfile.mkdtemp(prefix="myoskin_bench_"), "arm.pc2")
+        assert bpy.ops.myoskin.bake_pc2(filepath=pc2, frame_start=1, frame_end=args.frames,
+                                        add_modifier=True) == {'FINISHED'}
+        own_arm.myoskin.live = False
+
+    # The skin baked to a PC2 that a Mesh Cache modifier plays; the character bound with the anchored deformer.
+    cached_scene = bound_in_own_scene("Cached", after_bind=bake_to_pc2)
+    anchored_scene = bound_in_own_scene("Anchored", deformer='ANCHORED')
 
     # The plain character with Preserve Volume (what Bind sets by default), to separate the dual-quaternion
     # blend's own cost from Myoskin's.
