@@ -45,16 +45,6 @@ def mesh_co(obj):
     return co.reshape(-1, 3).astype(np.float64)
 
 
-def skin_weights(skin):
-    """{group name: {vertex: weight}} of every vertex group."""
-    names = {g.index: g.name for g in skin.vertex_groups}
-    out = {n: {} for n in names.values()}
-    for v in skin.data.vertices:
-        for g in v.groups:
-            out[names[g.group]][v.index] = g.weight
-    return out
-
-
 # ------------------------------------------------------------------------------------------------
 # Extract
 # ------------------------------------------------------------------------------------------------

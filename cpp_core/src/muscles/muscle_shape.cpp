@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "muscles/muscle_util.h"
 #include "myoskin/errors.h"
 #include "myoskin/skinning.h"
 
@@ -161,20 +162,7 @@ Mesh keepRings(const Mesh& surface, int M, int first, int last, const Vec3& pole
   mesh.vertices.topRows(R * M) = surface.vertices.middleRows(first * M, R * M);
   mesh.vertices.row(R * M) = poleO.transpose();
   mesh.vertices.row(R * M + 1) = poleI.transpose();
-  mesh.triangles.resize(2 * M * (R - 1) + 2 * M, 3);
-  int t = 0;
-  for (int r = 0; r + 1 < R; ++r)
-    for (int k = 0; k < M; ++k) {
-      const int a = r * M + k, b = r * M + (k + 1) % M, c = (r + 1) * M + (k + 1) % M, d = (r + 1) * M + k;
-      mesh.triangles.row(t++) << a, b, c;
-      mesh.triangles.row(t++) << a, c, d;
-    }
-  for (int k = 0; k < M; ++k) {
-    mesh.triangles.row(t++) << R * M, (k + 1) % M, k;
-    mesh.triangles.row(t++) << R * M + 1, (R - 1) * M + k, (R - 1) * M + (k + 1) % M;
-  }
-  if (enclosedVolume(mesh.vertices, mesh.triangles) < 0)
-    for (int i = 0; i < mesh.numTriangles(); ++i) std::swap(mesh.triangles(i, 1), mesh.triangles(i, 2));
+  detail::closeRingTube(mesh, R, M);
   return mesh;
 }
 

@@ -226,24 +226,9 @@ Mesh loftMuscleSurface(const Muscle& muscle, const SurfaceOptions& options) {
   mesh.vertices.resize(R * M + 2, 3);
   for (int r = 0; r < R; ++r)
     for (int k = 0; k < M; ++k) mesh.vertices.row(r * M + k) = (*all[r])[k].transpose();
-  const int poleO = R * M, poleI = R * M + 1;
-  mesh.vertices.row(poleO) = poleOrigin.transpose();
-  mesh.vertices.row(poleI) = poleInsertion.transpose();
-  mesh.triangles.resize(2 * M * (R - 1) + 2 * M, 3);
-  int t = 0;
-  for (int r = 0; r + 1 < R; ++r)
-    for (int k = 0; k < M; ++k) {
-      const int a = r * M + k, b = r * M + (k + 1) % M, c = (r + 1) * M + (k + 1) % M, d = (r + 1) * M + k;
-      mesh.triangles.row(t++) << a, b, c;
-      mesh.triangles.row(t++) << a, c, d;
-    }
-  for (int k = 0; k < M; ++k) {
-    mesh.triangles.row(t++) << poleO, (k + 1) % M, k;
-    mesh.triangles.row(t++) << poleI, (R - 1) * M + k, (R - 1) * M + (k + 1) % M;
-  }
-  // Outward orientation: flip when the enclosed volume comes out negative.
-  if (enclosedVolume(mesh.vertices, mesh.triangles) < 0)
-    for (int i = 0; i < mesh.numTriangles(); ++i) std::swap(mesh.triangles(i, 1), mesh.triangles(i, 2));
+  mesh.vertices.row(R * M) = poleOrigin.transpose();
+  mesh.vertices.row(R * M + 1) = poleInsertion.transpose();
+  detail::closeRingTube(mesh, R, M);
   return mesh;
 }
 

@@ -3,14 +3,37 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include "myoskin/mesh.h"
 #include "myoskin/types.h"
 
 namespace myoskin::detail {
 
 // The trunk's plane families (across the whole body): they get their own height floor and attachments.
 inline bool trunkFamily(const std::string& family) { return family == "abdomen" || family == "neck"; }
+
+// Closes a muscle loft: mesh.vertices holds R rings of M vertices (origin ring first) and then the origin and
+// insertion poles (rows R * M and R * M + 1); fills mesh.triangles (quads between rings split in two, a fan to
+// each pole) and flips them all when the enclosed volume comes out negative, so the surface faces outward.
+inline void closeRingTube(Mesh& mesh, int R, int M) {
+  const int poleO = R * M, poleI = R * M + 1;
+  mesh.triangles.resize(2 * M * (R - 1) + 2 * M, 3);
+  int t = 0;
+  for (int r = 0; r + 1 < R; ++r)
+    for (int k = 0; k < M; ++k) {
+      const int a = r * M + k, b = r * M + (k + 1) % M, c = (r + 1) * M + (k + 1) % M, d = (r + 1) * M + k;
+      mesh.triangles.row(t++) << a, b, c;
+      mesh.triangles.row(t++) << a, c, d;
+    }
+  for (int k = 0; k < M; ++k) {
+    mesh.triangles.row(t++) << poleO, (k + 1) % M, k;
+    mesh.triangles.row(t++) << poleI, (R - 1) * M + k, (R - 1) * M + (k + 1) % M;
+  }
+  if (enclosedVolume(mesh.vertices, mesh.triangles) < 0)
+    for (int i = 0; i < mesh.numTriangles(); ++i) std::swap(mesh.triangles(i, 1), mesh.triangles(i, 2));
+}
 
 // Closest point to p on segment [a, b]; t receives the segment parameter in [0, 1].
 inline Vec3 closestOnSegment(const Vec3& p, const Vec3& a, const Vec3& b, double* t = nullptr) {
