@@ -5,6 +5,7 @@
 
 #include "bindings.h"
 #include "myoskin/errors.h"
+#include "myoskin/memory_budget.h"
 
 namespace py = pybind11;
 
@@ -45,6 +46,9 @@ PYBIND11_MODULE(_core, m) {
         return d;
       },
       "What this module was built for: myoskin_version, python_version (major.minor), build_type, compiler.");
+  m.def("available_memory", &myoskin::availableMemoryBytes,
+        "Bytes the core's large stages may still allocate before they refuse with ValueError: the least of free "
+        "memory, the cgroup's memory.max, ulimit -v and MYOSKIN_MEMORY_LIMIT (e.g. '4G') minus the resident set.");
   m.attr("__version__") = MYOSKIN_VERSION;
   myoskin::python::bindCharacter(m);
   myoskin::python::bindMuscles(m);

@@ -591,6 +591,24 @@ def test_million_vertex_mesh_is_handled_quickly():
         assert_unchanged(before, arm, skin)
 
 
+def test_memory_budget_refuses_what_would_not_fit():
+    """A farm job's memory cap (MYOSKIN_MEMORY_LIMIT, as the cgroup's memory.max or free memory would be):
+    Extract and Bind stop with a message naming the memory needed, nothing changed; without the cap they run."""
+    arm, skin = tube_character("Capped")
+    before = snapshot(arm, skin)
+    bpy.context.view_layer.objects.active = arm
+    os.environ["MYOSKIN_MEMORY_LIMIT"] = "1M"
+    try:
+        status, message = call(bpy.ops.myoskin.extract_muscles)
+    finally:
+        del os.environ["MYOSKIN_MEMORY_LIMIT"]
+    assert status == 'CANCELLED', message
+    assert_clear(message, "needs about", "MiB of memory")
+    assert_unchanged(before, arm, skin)
+    status, message = call(bpy.ops.myoskin.extract_muscles)
+    assert "needs about" not in message, message
+
+
 # ------------------------------------------------------------------------------------------------
 # Armatures: one bone, 1,000 bones, zero-length bones, zero and negative (mirrored) scale
 # ------------------------------------------------------------------------------------------------

@@ -11,6 +11,7 @@
 #include "muscles/muscle_names.h"
 #include "muscles/muscle_util.h"
 #include "myoskin/errors.h"
+#include "myoskin/memory_budget.h"
 #include "myoskin/extraction.h"
 #include "myoskin/muscle_shape.h"
 
@@ -133,6 +134,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       throw InputError("forced region " + std::to_string(r) + " has " + std::to_string(options.forcedRegions[r].size()) +
                        " entries, the skin has " + std::to_string(nv) + " vertices");
   if (!std::isfinite(options.referenceLimbRadius)) throw InputError("referenceLimbRadius must be finite");
+  requireMemory(extractionMemoryEstimate(nv), "muscle extraction on " + std::to_string(nv) + " vertices");
 
   // The body surface: small and rigidly bound components left out, vertices renumbered.
   std::vector<ExcludedComponent> excluded;

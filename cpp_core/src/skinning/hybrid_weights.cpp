@@ -9,6 +9,7 @@
 
 #include "muscles/muscle_util.h"
 #include "myoskin/errors.h"
+#include "myoskin/memory_budget.h"
 #include "myoskin/sections.h"
 #include "myoskin/skinning.h"
 
@@ -104,6 +105,8 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
   for (int j = 0; j < rig.numJoints(); ++j)
     if (rig.jointParentBone()[j] < -1 || rig.jointParentBone()[j] >= nb)
       throw InputError("hybrid weights: the rig was built for another skeleton (joint '" + rig.jointNames()[j] + "')");
+  requireMemory(hybridWeightsMemoryEstimate(nv, rig.numMuscles()),
+                "binding " + std::to_string(rig.numMuscles()) + " muscles to " + std::to_string(nv) + " vertices");
 
   const Points normals = vertexNormals(skin.vertices, skin.triangles);
   std::vector<int> start, next;

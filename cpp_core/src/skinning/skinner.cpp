@@ -17,6 +17,7 @@
 #include <Eigen/Geometry>
 
 #include "myoskin/errors.h"
+#include "myoskin/memory_budget.h"
 #include "myoskin/skinning.h"
 
 namespace myoskin {
@@ -413,6 +414,7 @@ Skinner::Skinner(const Points& rest, const SkinWeights& weights, int numJoints, 
   validateOptions(options, numJoints);
   const int nv = static_cast<int>(rest.rows());
   const int kin = weights.influences();
+  requireMemory(skinnerMemoryEstimate(nv, kin), "skinning " + std::to_string(nv) + " vertices");
   int slots = 1;
   for (int v = 0; v < nv; ++v) {
     if (!rest.row(v).allFinite())
