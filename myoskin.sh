@@ -133,6 +133,18 @@ run_bench() {
   log "bench_skin_quality (core: LBS, DQS, Myoskin at bent joints)"
   PYTHONPATH="$BUILD/blender_scripts/addons/myoskin" /usr/bin/python3 "$ROOT/benchmarks/bench_skin_quality.py" \
     "${MYOSKIN_SHARED_DIR:-$ROOT/../shared}"
+  # The same measures through Blender's own Armature modifier (LBS, Preserve Volume, Myoskin bound), beside the
+  # core's skinner on the same skin, on every Blender of the matrix (~40 s each); a character that fails to bind
+  # fails the bench once every benchmark has run.
+  local label build cmd shared quality_failed=()
+  shared="$(cd "${MYOSKIN_SHARED_DIR:-$ROOT/../shared}" 2>/dev/null && pwd || echo "${MYOSKIN_SHARED_DIR:-$ROOT/../shared}")"
+  while IFS=$'\t' read -r label build cmd; do
+    log "bench_blender_skin_quality ($label)"
+    # shellcheck disable=SC2086
+    BLENDER_USER_SCRIPTS="$build/blender_scripts" $cmd "$ROOT/benchmarks/bench_blender_skin_quality.py" -- "$shared" \
+      2>&1 | grep -v -e "^Blender quit" -e "^Read prefs" -e "^Freeing memory" -e "mounted file-systems" -e "^Info:" \
+                    -e "| INFO: " -e "^Data are loaded" -e "^glTF import finished" || quality_failed+=("$label")
+  done < <(matrix_blenders)
   log "bench_limits (core: time and peak memory at ~1M vertices and with 500 muscles)"
   PYTHONPATH="$BUILD/blender_scripts/addons/myoskin" /usr/bin/python3 "$ROOT/benchmarks/bench_limits.py"
   for b in "$BUILD"/bin/bench_*; do
@@ -147,7 +159,6 @@ run_bench() {
       --threads "$t" 2>&1 | grep -v -e "^Blender quit" -e "^Read prefs"
   done
   # Playback against the plain Armature modifier, on every Blender of the matrix.
-  local label build cmd
   while IFS=$'\t' read -r label build cmd; do
     log "bench_blender_playback ($label)"
     # shellcheck disable=SC2086
@@ -155,6 +166,10 @@ run_bench() {
       | grep -v -e "^Blender quit" -e "^Read prefs" -e "^Freeing memory" -e "mounted file-systems" -e "^Info:" \
              -e "^Read blend" -e "^Saved"
   done < <(matrix_blenders)
+  if [ "${#quality_failed[@]}" -gt 0 ]; then
+    echo "myoskin: bench_blender_skin_quality failed on ${quality_failed[*]} (a character did not bind: see its ERROR line)" >&2
+    return 1
+  fi
 }
 
 case "${1:-}" in

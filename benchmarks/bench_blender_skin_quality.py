@@ -17,10 +17,11 @@ from the Blender scene through the add-on's reader (blender_io.combined_characte
 its space, welded), so both share the armature space; each joint is bent by skin_quality.bent_pose in that space
 (Blender's characters face -Y) and the armature is posed so that every bone's PoseBone.matrix equals it.
 
-Characters: makehuman_muscular_male and Quaternius' woman soldier (Blender's glTF importer through the add-on),
-the generated biped (seed 21: _core.make_synthetic_body written by blender_io.character_to_blender). A character
-whose file is missing is skipped with a message; one that fails to import, extract, bind or pose makes the run
-exit 1 with a message naming it. Never asserts on the figures. Run (./myoskin.sh bench does):
+Characters: makehuman_muscular_male, Quaternius' woman soldier (four meshes, x100) and horse (x100) through
+Blender's glTF importer (the add-on's gltf_io), and the generated biped (seed 21: _core.make_synthetic_body written
+by blender_io.character_to_blender). A character whose file is missing is skipped with a message; one that fails
+to import, extract, bind or pose makes the run exit 1 with a message naming it (the others are still measured).
+Never asserts on the figures. Run (./myoskin.sh bench does, on every Blender of the matrix):
 
     BLENDER_USER_SCRIPTS=build/blender_scripts blender -b --factory-startup --python-exit-code 1 \\
         --addons myoskin --python benchmarks/bench_blender_skin_quality.py -- [SHARED_DIR]
@@ -44,6 +45,7 @@ CHARACTERS = [  # (label, file under the shared folder or None for the generated
     ("generated biped, seed 21", None, skin_quality.SYNTHETIC_BODY_JOINTS),
     ("quaternius_woman_soldier", "characters/quaternius_woman_soldier/woman_soldier.glb",
      skin_quality.QUATERNIUS_JOINTS),
+    ("quaternius_horse", "characters/quaternius_horse/horse.glb", skin_quality.HORSE_JOINTS),
 ]
 METHODS = ("LBS", "DQS", "Myoskin")
 
@@ -79,14 +81,19 @@ def load_scene(core, path):
         character, _truth = core.make_synthetic_body(seed=21)
         arm, _skin = addon_module("blender_io").character_to_blender(character, "Biped")
         return arm
-    result = addon_module("gltf_io").import_gltf(path)
+    try:
+        result = addon_module("gltf_io").import_gltf(path)
+    except RuntimeError as e:
+        raise CharacterFailed(f"glTF import of {path} failed: {str(e).strip()}") from None
     if result != {'FINISHED'}:
         raise CharacterFailed(f"glTF import of {path} returned {result}")
     io = addon_module("blender_io")
     armatures = [o for o in bpy.context.scene.objects if o.type == 'ARMATURE' and io.character_meshes(o)[0]]
     if not armatures:
         raise CharacterFailed(f"{path}: no armature deforms a skinned mesh after import")
-    return max(armatures, key=lambda a: len(io.character_meshes(a)[0]))
+    arm = max(armatures, key=lambda a: len(io.character_meshes(a)[0]))
+    arm.animation_data_clear()  # an imported Action (the horse's) would overwrite the poses set here
+    return arm
 
 
 def armature_modifiers(meshes, arm):
@@ -250,7 +257,7 @@ def measure_character(core, label, path, joints):
     combined_rest = core.combined_rest_matrices(rig.character, rig.rig)
     bind_inverse = np.linalg.inv(np.asarray(rig.rig.bind_matrices))
     pv = all(m.use_deform_preserve_volume for m in mods)
-    update()
+    pose_armature(arm, character, bone_rest)
     rest_error = float(np.abs(evaluated(combined, arm, first) - rest).max()) / size
 
     rows = []
@@ -322,7 +329,7 @@ def main():
             continue
         try:
             rows, limb_radius, summary = measure_character(core, label, path, joints)
-        except CharacterFailed as e:
+        except (CharacterFailed, ValueError) as e:  # ValueError: the add-on's or the core's message on bad input
             print(f"ERROR {label}: {e}", flush=True)
             failed.append(label)
             continue
