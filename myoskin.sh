@@ -4,7 +4,8 @@
 #   ./myoskin.sh test                setup + build + every test tier (C++, Python, Blender) through ctest
 #   ./myoskin.sh render-muscles [OUTPUT_DIR]  extract + render the MakeHuman characters' muscles -> out/muscles
 #   ./myoskin.sh gallery [OUTPUT_DIR]  the README's pictures: bent joints under LBS, DQS and Myoskin -> docs/gallery
-#   ./myoskin.sh bench               setup + build + the speed benchmarks (printed, never asserted)
+#   ./myoskin.sh bench               setup + build + the speed and skin-quality benchmarks (printed, never
+#                                    asserted; fails when a character of the Blender quality bench does not bind)
 #   ./myoskin.sh build               setup + build only (and the packages in build/dist: the Blender 4.2+
 #                                    extension and the legacy zip for 3.4, each with the core for 3.11 and 3.13)
 #   ./myoskin.sh setup               install missing Debian packages only
