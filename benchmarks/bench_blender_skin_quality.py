@@ -219,7 +219,7 @@ def measure_character(core, label, path, joints):
     if not bent:
         raise CharacterFailed(f"none of the joints' bones ({', '.join(j[1] for j in joints)}) is in the rig")
     skins = {}
-    for (jlabel, *_rest), pose in bent:
+    for (jlabel, *_), pose in bent:
         err = pose_armature(arm, character, pose)
         if err > POSE_TOLERANCE * size:
             raise CharacterFailed(f"{jlabel}: the posed bones differ from the core's pose by {err / size:.1e} of "
