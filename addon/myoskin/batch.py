@@ -9,7 +9,10 @@
 Steps run in this order, each optional: import (--input .glb/.gltf/.blend), extract, --bind, --bake A-B
 (muscle joints keyed into the armature's Action), --pc2 FILE (the skin over the bake range, computed by the
 core; a character of several meshes gets one file per mesh, FILE_<mesh>.pc2), --gltf FILE (skin + armature
-+ helper bones + Actions), -o FILE.blend. The add-on must be findable
++ helper bones + Actions), -o FILE.blend. A farm splits a bake into chunks run by separate processes: each `--bake A-B --pc2
+FILE_A.pc2 [--jiggle] [--skin-solve] [--jiggle-start F] --state-in PREV.json --state-out NEXT.json` continues the
+simulation from the state file the chunk before wrote, and the chunks' frames equal one bake's bit for bit.
+The add-on must be findable
 (BLENDER_USER_SCRIPTS=<build>/blender_scripts, or installed); it is enabled here when it is not. Errors
 print one line "myoskin batch: error: ..." and exit with status 1 (with --python-exit-code 1 for Python
 exceptions too).
@@ -55,12 +58,18 @@ def parse_args(argv):
                    help="with --bake: simulate the muscles' jiggle into the baked keys (the rig's Jiggle settings)")
     p.add_argument("--jiggle-start", type=int, default=None, metavar="F",
                    help="with --jiggle: the frame the simulation starts from (a farm chunk --bake A-B of a longer "
-                        "bake from F: keyed over A-B, simulated from F, so chunks join exactly)")
+                        "bake from F: keyed over A-B, simulated from F, so chunks join exactly; with --pc2 too)")
     p.add_argument("--pc2", metavar="FILE", help="bake the skin to a PC2 cache (needs --bind and --bake)")
     p.add_argument("--skin-solve", action="store_true",
                    help="with --pc2: solve the skin against the posed muscles every frame (it slides over them)")
     p.add_argument("--filter", action="store_true",
                    help="with --pc2 --skin-solve: the temporal filter on what the solve adds")
+    p.add_argument("--state-in", metavar="S.json",
+                   help="with --pc2: a farm chunk continues the simulation from the state file the chunk before it "
+                        "wrote (--state-out), instead of replaying from --jiggle-start (default: the state's start)")
+    p.add_argument("--state-out", metavar="S.json",
+                   help="with --pc2: write the simulation state at the end of this chunk, for the next chunk's "
+                        "--state-in (chunks then stitch bit for bit to one bake)")
     p.add_argument("--gltf", metavar="FILE", help="export skin + armature + helper bones to glTF")
     p.add_argument("-o", "--output", metavar="FILE.blend", help="save the result")
     return p.parse_args(argv)
@@ -283,12 +292,23 @@ def main(argv):
         run_op(bpy.ops.myoskin.bake_action, frame_start=frames[0], frame_end=frames[1], jiggle=bool(state.jiggle),
                **extra)
         log(f"baked muscle joints{' with jiggle' if state.jiggle else ''} over frames {frames[0]}-{frames[1]}")
+    if (args.state_in or args.state_out) and not args.pc2:
+        fail("--state-in / --state-out need --pc2 (they stitch the chunks of a PC2 bake)")
+    if args.state_in and not os.path.isfile(os.path.abspath(args.state_in)):
+        fail(f"--state-in {os.path.abspath(args.state_in)}: no such file")
     if args.pc2:
         if not frames:
             fail("--pc2 needs --bake A-B for its frame range")
+        chunk = {}
+        if args.jiggle_start is not None:
+            chunk["simulation_start"] = args.jiggle_start
+        if args.state_in:
+            chunk["state_in"] = os.path.abspath(args.state_in)
+        if args.state_out:
+            chunk["state_out"] = os.path.abspath(args.state_out)
         run_op(bpy.ops.myoskin.bake_pc2, filepath=os.path.abspath(args.pc2), frame_start=frames[0],
                frame_end=frames[1], skin_solve=args.skin_solve, jiggle=bool(state.jiggle),
-               temporal_filter=args.filter)
+               temporal_filter=args.filter, **chunk)
         written = addon("operators.rig").pc2_paths(os.path.abspath(args.pc2), addon("binding").bound_skins(arm))
         log(f"wrote {', '.join(written)}")
     if args.gltf:

@@ -201,6 +201,9 @@ class MyoskinRigState(bpy.types.PropertyGroup):
     skin_solve: BoolProperty(name="Skin Solve", default=False,
                              description="Bake PC2 relaxes the skin every frame and pushes it out of the posed muscles "
                                          "so it slides over them (Gray & Hutchinson's skin solve)")
+    temporal_filter: BoolProperty(name="Temporal Filter", default=True,
+                                  description="With Skin Solve: Bake PC2 pulls back what the solve adds where it "
+                                              "jitters from frame to frame (smooth motion passes unchanged)")
     jiggle_frequency: FloatProperty(name="Frequency", default=5.0, min=0.05, soft_max=20.0,
                                     description="Natural frequency in Hz of a muscle of the median size (smaller "
                                                 "muscles are stiffer)")
