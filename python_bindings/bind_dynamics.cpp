@@ -122,9 +122,16 @@ std::vector<PointsF> shapeOffsetsArg(const py::object& a, size_t numFrames, Eige
 struct PyJiggle {
   std::shared_ptr<MuscleRig> rig;
   PoseSequence poses;
+  double fps = 24.0;
   std::unique_ptr<JiggleTrack> track;
   MuscleRigState state;
   std::mutex mutex;
+
+  std::vector<std::string> muscleNames() const {
+    std::vector<std::string> names;
+    for (const Muscle& m : rig->muscles()) names.push_back(m.name);
+    return names;
+  }
 };
 
 }  // namespace
@@ -146,6 +153,7 @@ void bindDynamics(py::module_& m) {
              auto j = std::make_unique<PyJiggle>();
              j->rig = std::make_shared<MuscleRig>(static_cast<const MuscleRig&>(rig));
              j->poses = sequenceArg(poses, c.skeleton.numBones(), startFrame);
+             j->fps = fps;
              const JiggleOptions o =
                  jiggleOptions(timeStep, frequency, sizeExponent, dampingRatio, density, amount, maxOffset);
              std::vector<JiggleParams> p = paramsArg(params);
@@ -219,7 +227,46 @@ void bindDynamics(py::module_& m) {
                              "#M by 3: mass, stiffness, damping")
       .def_property_readonly("influence", [](const PyJiggle& j) { return j.track->influence(); })
       .def_property_readonly("first_frame", [](const PyJiggle& j) { return j.track->firstFrame(); })
-      .def_property_readonly("last_frame", [](const PyJiggle& j) { return j.track->lastFrame(); });
+      .def_property_readonly("last_frame", [](const PyJiggle& j) { return j.track->lastFrame(); })
+      .def(
+          "write_state",
+          [](PyJiggle& j, const std::string& path, int frame) {
+            py::gil_scoped_release release;
+            std::lock_guard<std::mutex> lock(j.mutex);
+            SimulationState s;
+            s.frame = frame;
+            s.fps = j.fps;
+            s.timeStep = j.track->options().timeStep;
+            s.startFrame = static_cast<int>(j.poses.startFrame);
+            s.muscles = j.muscleNames();
+            s.hasJiggle = true;
+            s.jiggle = j.track->stateAt(frame);
+            writeSimulationState(path, s);
+          },
+          py::arg("path"), py::arg("frame"),
+          "Writes the state of a frame to a simulation state file (the format simulate's state_out writes), so a "
+          "later chunk continues from it (restore_state).")
+      .def(
+          "restore_state",
+          [](PyJiggle& j, const std::string& path) {
+            py::gil_scoped_release release;
+            std::lock_guard<std::mutex> lock(j.mutex);
+            const SimulationState s = readSimulationState(path);
+            const std::string why = path + ": the state was made ";
+            if (!s.hasJiggle) throw InputError(why + "without jiggle");
+            if (s.fps != j.fps) throw InputError(why + "at " + std::to_string(s.fps) + " fps, this track is at " + std::to_string(j.fps));
+            if (s.startFrame != static_cast<int>(j.poses.startFrame))
+              throw InputError(why + "for a simulation from frame " + std::to_string(s.startFrame));
+            if (s.timeStep != j.track->options().timeStep) throw InputError(why + "with another jiggle time step");
+            if (s.muscles != j.muscleNames()) throw InputError(why + "for other muscles");
+            if (j.track->stepOf(s.frame) != s.jiggle.step)
+              throw InputError(why + "for another frame than it says (grid step " + std::to_string(s.jiggle.step) + ")");
+            j.track->restore(s.jiggle);
+            return s.frame;
+          },
+          py::arg("path"),
+          "Continues from a simulation state file (write_state's or simulate's state_out, same settings): frames "
+          "from its frame on are computed from it, not replayed. Returns the state's frame.");
 
   // ==========================================================================
   // Temporal filter

@@ -21,7 +21,7 @@ sys.path.insert(0, os.path.join(os.environ.get("MYOSKIN_SOURCE_DIR", os.path.joi
     os.path.abspath(__file__)), "..", "..")), "tests", "blender"))
 import blender_test_runner as runner  # noqa: E402
 from blender_test_runner import addon_module as module, operator_error  # noqa: E402
-from test_dynamics import STOP, animated_arm  # noqa: E402  (the synthetic arm, elbow flexing then held)
+from test_dynamics import STOP, animated_arm, joint_heads  # noqa: E402  (the synthetic arm, elbow flexing then held)
 
 TMP = tempfile.mkdtemp(prefix="myoskin_test_dynamics_pc2_")
 BATCH = os.path.join(runner.SOURCE_DIR, "addon", "myoskin", "batch.py")
@@ -41,31 +41,37 @@ def batch(*args, blend):
 
 
 def test_farm_chunks_with_state_files_stitch_to_one_bake():
-    skin_name = animated_arm()[1].name
-    blend = os.path.join(TMP, "farm.blend")
+    arm, skin = animated_arm()
+    skin_name, arm_name = skin.name, arm.name
+    blend, chunk_blend = os.path.join(TMP, "farm.blend"), os.path.join(TMP, "farm_chunk2.blend")
     bpy.ops.wm.save_as_mainfile(filepath=blend)
     for extra in ((), ("--skin-solve", "--filter")):
         name = "solve" if extra else "jiggle"
         whole = os.path.join(TMP, f"{name}_whole.pc2")
         solve = bool(extra)
-        assert bpy.ops.myoskin.bake_pc2(filepath=whole, frame_start=1, frame_end=24, jiggle=True, skin_solve=solve,
+        assert bpy.ops.myoskin.bake_pc2(filepath=whole, frame_start=1, frame_end=20, jiggle=True, skin_solve=solve,
                                         temporal_filter=solve) == {'FINISHED'}
         parts = [os.path.join(TMP, f"{name}_{k}.pc2") for k in (1, 2)]
         state = os.path.join(TMP, f"{name}_state.json")
-        batch("--bake", "1-12", "--jiggle", "--pc2", parts[0], "--state-out", state, *extra, blend=blend)
+        batch("--bake", "1-10", "--jiggle", "--pc2", parts[0], "--state-out", state, *extra, blend=blend)
         with open(state, encoding="utf-8") as f:
             saved = json.load(f)
-        assert saved["frame"] == 11 and saved["start_frame"] == 1 and "jiggle" in saved, saved
-        log = batch("--bake", "13-24", "--jiggle", "--pc2", parts[1], "--state-in", state, *extra, blend=blend)
+        assert saved["frame"] == 9 and saved["start_frame"] == 1 and "jiggle" in saved, saved
+        # the second chunk reads and rewrites one state file (as a farm's chain does); its jiggled Action is saved
+        tail = ("-o", chunk_blend) if not extra else ()
+        log = batch("--bake", "11-20", "--jiggle", "--pc2", parts[1], "--state-in", state, "--state-out", state,
+                    *extra, *tail, blend=blend)
         assert "wrote" in log, log
+        with open(state, encoding="utf-8") as f:
+            assert json.load(f)["frame"] == 19
         one, first, second = pc2_frames(whole), pc2_frames(parts[0]), pc2_frames(parts[1])
-        assert one.shape[0] == 24 and first.shape[0] == 12 and second.shape[0] == 12
+        assert one.shape[0] == 20 and first.shape[0] == 10 and second.shape[0] == 10
         assert one.dtype == np.float32 and first.dtype == np.float32
         stitched = np.concatenate([first, second])
         assert stitched.tobytes() == one.tobytes(), f"{name}: the chunks differ from one bake by " \
             f"{np.abs(stitched - one).max():.3g}"
         assert np.abs(one[14] - one[0]).max() > 0.01 * runner.size_of(bpy.data.objects[skin_name])
-        print(f"farm ({name}): 2 chunk processes (1-12, 13-24 from the state of frame 11) = one bake, bit for bit")
+        print(f"farm ({name}): 2 chunk processes (1-10, 11-20 from the state of frame 9) = one bake, bit for bit")
     # A chunk whose state is too late for it is refused with the reason.
     late = os.path.join(TMP, "late_state.json")
     assert bpy.ops.myoskin.bake_pc2(filepath=os.path.join(TMP, "late.pc2"), frame_start=1, frame_end=20, jiggle=True,
@@ -73,6 +79,15 @@ def test_farm_chunks_with_state_files_stitch_to_one_bake():
     msg = operator_error(bpy.ops.myoskin.bake_pc2, filepath=os.path.join(TMP, "bad.pc2"), frame_start=13,
                          frame_end=24, jiggle=True, state_in=late)
     assert "needs the state of frame 11 or earlier" in msg, msg
+    # The jiggled Action of the second chunk (its own state file beside the PC2's) keys what one bake keys.
+    assert os.path.isfile(os.path.join(TMP, "jiggle_state.action.json"))
+    arm = bpy.data.objects[arm_name]
+    assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=20, jiggle=True) == {'FINISHED'}
+    whole = joint_heads(arm, range(11, 21))
+    bpy.ops.wm.open_mainfile(filepath=chunk_blend)
+    chunk = joint_heads(bpy.data.objects[arm_name], range(11, 21))
+    assert np.abs(whole - chunk).max() == 0.0, "the chunk's Action must key what one bake keys"
+    print("farm: the second chunk's jiggled Action keys (from the state file) = one bake's, bit for bit")
 
 
 def test_painted_jiggle_map_acts_per_vertex_on_the_pc2():

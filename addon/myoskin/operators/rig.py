@@ -122,6 +122,13 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
                               description="Jiggle: the frame the simulation starts from at rest (below Start: a farm "
                                           "chunk of a longer bake, keyed from Start but simulated from here, so "
                                           "chunks agree with one bake; default: Start)")
+    state_in: StringProperty(name="State In", subtype='FILE_PATH', default="",
+                             description="Jiggle, a farm chunk: the simulation state file the chunk before wrote "
+                                         "(State Out; Bake PC2's works too), so the jiggle continues from it instead "
+                                         "of replaying the frames before Start")
+    state_out: StringProperty(name="State Out", subtype='FILE_PATH', default="",
+                              description="Jiggle: write the simulation state of frame End - 1 for the next chunk's "
+                                          "State In (the format Bake PC2 writes)")
 
     def run(self, context):
         _skins, arm, state = require_bound(context)
@@ -144,9 +151,26 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
         rig = live.live_rig(arm)
         try:
             sim_start = self.frame_start if self.jiggle_start == -1000000 else self.jiggle_start
+            state_in = bpy.path.abspath(self.state_in) if self.state_in else ""
+            state_out = bpy.path.abspath(self.state_out) if self.state_out else ""
+            if (state_in or state_out) and not self.jiggle:
+                raise ValueError("State In / State Out carry the jiggle's state: turn Jiggle on")
+            sampled_from = None
+            if state_in:
+                state_frame, state_start = dynamics.state_file_frames(state_in)
+                if self.jiggle_start == -1000000:
+                    sim_start = state_start
+                if state_frame > self.frame_start:
+                    raise ValueError(f"The simulation state {state_in} is of frame {state_frame}, after Start "
+                                     f"{self.frame_start}: give the state the chunk before this one wrote")
+                sampled_from = max(sim_start, state_frame)
+            if state_out:
+                dynamics.check_state_target(state_out)
             if sim_start > self.frame_start:
                 raise ValueError(f"Simulation Start {sim_start} is after Start {self.frame_start}")
-            track = jiggle_track(context, arm, rig, sim_start, self.frame_end) if self.jiggle else None
+            track = jiggle_track(context, arm, rig, sim_start, self.frame_end, sampled_from) if self.jiggle else None
+            if state_in:  # the frames before the state are never evaluated: the state carries them
+                track[0].restore_state(state_in)
             for frame in range(self.frame_start, self.frame_end + 1):
                 k = frame - sim_start
                 scene.frame_set(frame)
@@ -161,6 +185,8 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
                     for path in ("location", "rotation_quaternion", "scale"):
                         pb.keyframe_insert(path, frame=frame, group=n)
                 wm.progress_update(frame)
+            if state_out:
+                track[0].write_state(state_out, max(sim_start, self.frame_end - 1))
         finally:
             wm.progress_end()
         state.live = False  # the baked Action plays now (also without the add-on); Live Update mutes it again
@@ -250,12 +276,15 @@ def sampled_frames(context, arm, rig, start, end, keyed=(), mixes=None):
     return np.ascontiguousarray(poses, dtype=np.float64), values
 
 
-def jiggle_track(context, arm, rig, start, end):
+def jiggle_track(context, arm, rig, start, end, sampled_from=None):
     """(core JiggleTrack over frames start..end, #F by #B by 4 by 4 skeleton poses it was sampled from) at the
     scene's frame rate with the rig's Jiggle settings. Deterministic: the same frames give the same track, so
-    separate bakes of a range agree."""
+    separate bakes of a range agree. sampled_from: a chunk that restores a state of that frame samples the
+    skeleton from there on only (the first sampled pose stands in for the frames before, never evaluated)."""
     scene = context.scene
-    poses = sampled_poses(context, arm, rig, start, end)
+    sampled_from = start if sampled_from is None else max(start, sampled_from)
+    poses = sampled_poses(context, arm, rig, sampled_from, end)
+    poses = np.ascontiguousarray(np.concatenate([np.repeat(poses[:1], sampled_from - start, axis=0), poses]))
     settings = jiggle_settings(context, arm, rig, binding.bound_skins(arm), poses)
     track = core_loader.core().JiggleTrack(rig.character, rig.rig, poses, scene.render.fps / scene.render.fps_base,
                                            float(start), **settings)
