@@ -40,6 +40,10 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
                                           (Unbind restores them exactly)
     skin_obj["myoskin_added_groups"]      the skeleton bones' vertex groups Bind created (bones the mesh had
                                           no group of); Unbind removes them again
+        .jiggle, .skin_solve, .temporal_filter, .jiggle_frequency/damping/amount   the Dynamics panel's settings
+    skin_obj vertex group "myoskin_jiggle"  the painted jiggle map (dynamics.py)
+    skin_obj["myoskin_sculpt"] + mesh attributes myoskin_sculpt_delta / myoskin_sculpt_framed   sculpt deltas
+                                          (dynamics.py: JSON description + the core's local deltas per vertex)
 
 Converting this to and from core Muscle lists is muscle_io's job; no core call here (only property
 definitions and their update callbacks, which hand the work to the layers above through runtime.dispatch;
