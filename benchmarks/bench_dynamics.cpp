@@ -66,9 +66,26 @@ int main() {
     sim.bake(sim.firstFrame(), sim.lastFrame(), [&](int, const PointsF& p) { sum += p.rows(); });
     return sum;
   };
+  // The add-on's PC2 inputs: a painted jiggle map (a second skinning per frame) and a shape key mix on every frame.
+  std::vector<double> map(c.mesh.numVertices());
+  for (int v = 0; v < c.mesh.numVertices(); ++v) map[v] = (v % 2) ? 1.0 : 0.25;
+  std::vector<PointsF> offsets(seq.frames.size());
+  for (PointsF& o : offsets) o = (0.002 * (c.mesh.vertices.array() * 40.0).sin()).cast<float>().matrix();
+  auto bakeExtra = [&](bool withMap, bool withKeys) {
+    SimulationOptions o;
+    o.jiggle = true;
+    if (withMap) o.jiggleVertexInfluence = map;
+    Simulation sim(c.mesh, c.skeleton, &rig, skinner, seq, o);
+    if (withKeys) sim.setShapeOffsets(offsets);
+    size_t sum = 0;
+    sim.bake(sim.firstFrame(), sim.lastFrame(), [&](int, const PointsF& p) { sum += p.rows(); });
+    return sum;
+  };
   const double n = static_cast<double>(seq.frames.size());
   const double plain = best([&] { bakeWith(false, false); }) / n;
   const double jiggle = best([&] { bakeWith(true, false); }) / n;
+  const double mapped = best([&] { bakeExtra(true, false); }) / n;
+  const double keyed = best([&] { bakeExtra(false, true); }) / n;
   // The jiggle alone: a fresh track (goals evaluated from the poses) per run, offsets and joint update per frame.
   MuscleRigState state = rig.makeState();
   const double track = best([&] {
@@ -77,6 +94,8 @@ int main() {
   }) / n;
   std::printf("baseline: skinning per frame (rig + Equation 3)   %.3f ms\n", 1e3 * plain);
   std::printf("with jiggle                                         %.3f ms  (x%.3f)\n", 1e3 * jiggle, jiggle / plain);
+  std::printf("with jiggle and a painted jiggle map (per vertex)   %.3f ms  (x%.3f)\n", 1e3 * mapped, mapped / plain);
+  std::printf("with jiggle and a shape key mix on every frame      %.3f ms  (x%.3f)\n", 1e3 * keyed, keyed / plain);
   // How far the jiggle moves the skin (largest vertex displacement over the swing, against plain skinning).
   std::vector<PointsF> plainFrames, jiggleFrames;
   for (bool j : {false, true}) {

@@ -1,5 +1,6 @@
 // Secondary motion: the jiggle track, the temporal filter, sculpt deltas and the (chunked) simulation into
 // arrays or PC2 caches. Arrays are checked here (ValueError naming the argument); long calls release the GIL.
+#include <algorithm>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -80,13 +81,57 @@ std::vector<double> influenceArg(const py::object& a) {
   return std::vector<double>(arr.data(), arr.data() + arr.size());
 }
 
+Triangles trianglesArg(const IntArray& a) {
+  if (a.ndim() != 2 || a.shape(1) != 3) throw InputError("triangles must be #F by 3");
+  Triangles t(a.shape(0), 3);
+  std::copy(a.data(), a.data() + a.size(), t.data());
+  return t;
+}
+
+// #V flags (nonzero: the delta is in the local frame).
+std::vector<char> framedArg(const py::object& a, Eigen::Index numVertices) {
+  const py::array_t<int32_t, py::array::c_style | py::array::forcecast> arr = a.cast<py::array_t<int32_t, py::array::c_style | py::array::forcecast>>();
+  if (arr.ndim() != 1 || arr.shape(0) != numVertices)
+    throw InputError("framed must be #V (" + std::to_string(numVertices) + ") flags");
+  std::vector<char> f(numVertices);
+  for (Eigen::Index v = 0; v < numVertices; ++v) f[v] = arr.at(v) != 0;
+  return f;
+}
+
+// #F by #V by 3 offsets (None: none) -> one PointsF per frame; frames whose offsets are all zero stay empty.
+std::vector<PointsF> shapeOffsetsArg(const py::object& a, size_t numFrames, Eigen::Index numVertices) {
+  std::vector<PointsF> out;
+  if (a.is_none()) return out;
+  const FloatArray arr = a.cast<FloatArray>();
+  if (arr.ndim() != 3 || static_cast<size_t>(arr.shape(0)) != numFrames || arr.shape(1) != numVertices ||
+      arr.shape(2) != 3)
+    throw InputError("shape_offsets must be #F (" + std::to_string(numFrames) + ", the poses) by #V (" +
+                     std::to_string(numVertices) + ") by 3");
+  out.resize(numFrames);
+  const size_t stride = static_cast<size_t>(numVertices) * 3;
+  for (size_t f = 0; f < numFrames; ++f) {
+    const float* p = arr.data() + f * stride;
+    if (std::all_of(p, p + stride, [](float x) { return x == 0.0f; })) continue;
+    out[f].resize(numVertices, 3);
+    std::copy(p, p + stride, out[f].data());
+  }
+  return out;
+}
+
 // The jiggle track with the rig and sequence it was built from (joint_matrices evaluates the rig per frame).
 struct PyJiggle {
   std::shared_ptr<MuscleRig> rig;
   PoseSequence poses;
+  double fps = 24.0;
   std::unique_ptr<JiggleTrack> track;
   MuscleRigState state;
   std::mutex mutex;
+
+  std::vector<std::string> muscleNames() const {
+    std::vector<std::string> names;
+    for (const Muscle& m : rig->muscles()) names.push_back(m.name);
+    return names;
+  }
 };
 
 }  // namespace
@@ -108,6 +153,7 @@ void bindDynamics(py::module_& m) {
              auto j = std::make_unique<PyJiggle>();
              j->rig = std::make_shared<MuscleRig>(static_cast<const MuscleRig&>(rig));
              j->poses = sequenceArg(poses, c.skeleton.numBones(), startFrame);
+             j->fps = fps;
              const JiggleOptions o =
                  jiggleOptions(timeStep, frequency, sizeExponent, dampingRatio, density, amount, maxOffset);
              std::vector<JiggleParams> p = paramsArg(params);
@@ -181,7 +227,46 @@ void bindDynamics(py::module_& m) {
                              "#M by 3: mass, stiffness, damping")
       .def_property_readonly("influence", [](const PyJiggle& j) { return j.track->influence(); })
       .def_property_readonly("first_frame", [](const PyJiggle& j) { return j.track->firstFrame(); })
-      .def_property_readonly("last_frame", [](const PyJiggle& j) { return j.track->lastFrame(); });
+      .def_property_readonly("last_frame", [](const PyJiggle& j) { return j.track->lastFrame(); })
+      .def(
+          "write_state",
+          [](PyJiggle& j, const std::string& path, int frame) {
+            py::gil_scoped_release release;
+            std::lock_guard<std::mutex> lock(j.mutex);
+            SimulationState s;
+            s.frame = frame;
+            s.fps = j.fps;
+            s.timeStep = j.track->options().timeStep;
+            s.startFrame = static_cast<int>(j.poses.startFrame);
+            s.muscles = j.muscleNames();
+            s.hasJiggle = true;
+            s.jiggle = j.track->stateAt(frame);
+            writeSimulationState(path, s);
+          },
+          py::arg("path"), py::arg("frame"),
+          "Writes the state of a frame to a simulation state file (the format simulate's state_out writes), so a "
+          "later chunk continues from it (restore_state).")
+      .def(
+          "restore_state",
+          [](PyJiggle& j, const std::string& path) {
+            py::gil_scoped_release release;
+            std::lock_guard<std::mutex> lock(j.mutex);
+            const SimulationState s = readSimulationState(path);
+            const std::string why = path + ": the state was made ";
+            if (!s.hasJiggle) throw InputError(why + "without jiggle");
+            if (s.fps != j.fps) throw InputError(why + "at " + std::to_string(s.fps) + " fps, this track is at " + std::to_string(j.fps));
+            if (s.startFrame != static_cast<int>(j.poses.startFrame))
+              throw InputError(why + "for a simulation from frame " + std::to_string(s.startFrame));
+            if (s.timeStep != j.track->options().timeStep) throw InputError(why + "with another jiggle time step");
+            if (s.muscles != j.muscleNames()) throw InputError(why + "for other muscles");
+            if (j.track->stepOf(s.frame) != s.jiggle.step)
+              throw InputError(why + "for another frame than it says (grid step " + std::to_string(s.jiggle.step) + ")");
+            j.track->restore(s.jiggle);
+            return s.frame;
+          },
+          py::arg("path"),
+          "Continues from a simulation state file (write_state's or simulate's state_out, same settings): frames "
+          "from its frame on are computed from it, not replayed. Returns the state's frame.");
 
   // ==========================================================================
   // Temporal filter
@@ -228,13 +313,30 @@ void bindDynamics(py::module_& m) {
                            "and re-applied on any frame.")
       .def(py::init([](const DoubleArray& reference, const IntArray& triangles, const DoubleArray& sculpted) {
              const Points r = pointsArg(reference, "reference"), s = pointsArg(sculpted, "sculpted");
-             if (triangles.ndim() != 2 || triangles.shape(1) != 3) throw InputError("triangles must be #F by 3");
-             Triangles t(triangles.shape(0), 3);
-             std::copy(triangles.data(), triangles.data() + triangles.size(), t.data());
+             const Triangles t = trianglesArg(triangles);
              py::gil_scoped_release release;
              return std::make_unique<SculptDeltas>(r, t, s);
            }),
            py::arg("reference"), py::arg("triangles"), py::arg("sculpted"))
+      .def_static(
+          "from_local",
+          [](const IntArray& triangles, const DoubleArray& localDeltas, const py::object& framed) {
+            const Points l = pointsArg(localDeltas, "local_deltas");
+            const Triangles t = trianglesArg(triangles);
+            const std::vector<char> f = framedArg(framed, l.rows());
+            py::gil_scoped_release release;
+            return std::make_unique<SculptDeltas>(t, l, f);
+          },
+          py::arg("triangles"), py::arg("local_deltas"), py::arg("framed"),
+          "Deltas captured before: local_deltas (#V by 3) and framed (#V, nonzero where the delta is in the local "
+          "frame) as another SculptDeltas over the same mesh gave them.")
+      .def_property_readonly("framed",
+                             [](const SculptDeltas& d) {
+                               py::array_t<bool> a(static_cast<py::ssize_t>(d.framed().size()));
+                               for (size_t v = 0; v < d.framed().size(); ++v) a.mutable_at(v) = d.framed()[v] != 0;
+                               return a;
+                             },
+                             "#V bools: the delta is in the local frame (else in world space)")
       .def(
           "apply",
           [](SculptDeltas& d, const DoubleArray& positions) {
@@ -258,7 +360,8 @@ void bindDynamics(py::module_& m) {
          double fps, int startFrame, bool jiggle, bool filter, const py::object& sculpt, const py::object& sculptFrame,
          const py::object& frames, const py::object& stateIn, const py::object& stateOut, const py::object& pc2,
          double jiggleFrequency, double jiggleDamping, double jiggleAmount, const py::object& skinSolve,
-         const py::object& jiggleParams, const py::object& jiggleInfluence) {
+         const py::object& jiggleParams, const py::object& jiggleInfluence, const py::object& jiggleVertexInfluence,
+         const py::object& shapeOffsets, const py::object& sculptDeltas) {
         const PyMuscleRig* r = rig.is_none() ? nullptr : &rig.cast<const PyMuscleRig&>();
         std::optional<Eigen::VectorXd> goalWeights;
         if (!skinSolve.is_none()) {
@@ -275,6 +378,14 @@ void bindDynamics(py::module_& m) {
         o.jiggleOptions.amount = jiggleAmount;
         o.jiggleParams = paramsArg(jiggleParams);
         o.jiggleInfluence = influenceArg(jiggleInfluence);
+        o.jiggleVertexInfluence = influenceArg(jiggleVertexInfluence);
+        std::vector<PointsF> offsets = shapeOffsetsArg(shapeOffsets, seq.frames.size(), c.mesh.numVertices());
+        std::optional<SculptDeltas> deltas;
+        if (!sculptDeltas.is_none()) {
+          if (!sculpt.is_none()) throw InputError("simulate: give sculpt or sculpt_deltas, not both");
+          const SculptDeltas& given = sculptDeltas.cast<const SculptDeltas&>();
+          deltas.emplace(c.mesh.triangles, given.localDeltas(), given.framed());  // a copy of its own (buffers)
+        }
         std::optional<Points> sculpted;
         if (!sculpt.is_none()) sculpted = pointsArg(sculpt.cast<DoubleArray>(), "sculpt");
         int first = startFrame, last = startFrame + static_cast<int>(seq.frames.size()) - 1;
@@ -297,6 +408,8 @@ void bindDynamics(py::module_& m) {
         {
           py::gil_scoped_release release;
           Simulation sim(c.mesh, c.skeleton, r, skinner, seq, o);
+          if (!offsets.empty()) sim.setShapeOffsets(std::move(offsets));
+          if (deltas) sim.setSculpt(std::move(*deltas));
           std::unique_ptr<SkinSolver> solver;
           Points solved;
           if (goalWeights) {
@@ -333,13 +446,17 @@ void bindDynamics(py::module_& m) {
       py::arg("state_in") = py::none(), py::arg("state_out") = py::none(), py::arg("pc2") = py::none(),
       py::arg("jiggle_frequency") = jd.frequency, py::arg("jiggle_damping") = jd.dampingRatio,
       py::arg("jiggle_amount") = jd.amount, py::arg("skin_solve") = py::none(), py::arg("jiggle_params") = py::none(),
-      py::arg("jiggle_influence") = py::none(),
+      py::arg("jiggle_influence") = py::none(), py::arg("jiggle_vertex_influence") = py::none(),
+      py::arg("shape_offsets") = py::none(), py::arg("sculpt_deltas") = py::none(),
       "Simulates the pose sequence (#F by #B by 4 by 4, frames start_frame ...) on the character through the "
       "skinner (built over its bones + the rig's joints): jiggle of the muscle masses, the temporal filter, "
       "sculpt (#V by 3, the skin sculpted on sculpt_frame). frames=(first, last) bakes a chunk; state_in / "
       "state_out are the state files that stitch chunks; skin_solve: #V goal weights "
       "(default_goal_weights) to solve the skin against the posed muscles every frame (SkinSolver); jiggle_params (#M by 3) and "
-      "jiggle_influence (#J) as JiggleTrack's. Returns #frames by #V by 3 float32, or writes pc2.");
+      "jiggle_influence (#J) as JiggleTrack's; jiggle_vertex_influence: #V in [0, 1], the share of the "
+      "jiggle each skin vertex gets (0: plain skinning, 1: the full jiggle); shape_offsets: #F (the poses) by #V by 3 "
+      "offsets of the rest mesh per frame (e.g. the shape key mix), skinned with each vertex's blended transform; "
+      "sculpt_deltas: a SculptDeltas (e.g. SculptDeltas.from_local of stored deltas) applied on every frame. Returns #frames by #V by 3 float32, or writes pc2.");
 }
 
 }  // namespace myoskin::python

@@ -9,7 +9,11 @@
 Steps run in this order, each optional: import (--input .glb/.gltf/.blend), extract, --bind, --bake A-B
 (muscle joints keyed into the armature's Action), --pc2 FILE (the skin over the bake range, computed by the
 core; a character of several meshes gets one file per mesh, FILE_<mesh>.pc2), --gltf FILE (skin + armature
-+ helper bones + Actions), -o FILE.blend. The add-on must be findable
++ helper bones + Actions), -o FILE.blend. A farm splits a bake into chunks run by separate processes: each `--bake A-B --pc2
+FILE_A.pc2 [--jiggle] [--skin-solve] [--jiggle-start F] --state-in PREV.json --state-out NEXT.json` continues the
+simulation from the state file the chunk before wrote, and the chunks' frames equal one bake's bit for bit (the
+jiggled Action's keys too: its state goes to NEXT.action.json beside the PC2's, read back from PREV.action.json).
+The add-on must be findable
 (BLENDER_USER_SCRIPTS=<build>/blender_scripts, or installed); it is enabled here when it is not. Errors
 print one line "myoskin batch: error: ..." and exit with status 1 (with --python-exit-code 1 for Python
 exceptions too).
@@ -55,12 +59,19 @@ def parse_args(argv):
                    help="with --bake: simulate the muscles' jiggle into the baked keys (the rig's Jiggle settings)")
     p.add_argument("--jiggle-start", type=int, default=None, metavar="F",
                    help="with --jiggle: the frame the simulation starts from (a farm chunk --bake A-B of a longer "
-                        "bake from F: keyed over A-B, simulated from F, so chunks join exactly)")
+                        "bake from F: keyed over A-B, simulated from F, so chunks join exactly; with --pc2 too)")
     p.add_argument("--pc2", metavar="FILE", help="bake the skin to a PC2 cache (needs --bind and --bake)")
     p.add_argument("--skin-solve", action="store_true",
                    help="with --pc2: solve the skin against the posed muscles every frame (it slides over them)")
     p.add_argument("--filter", action="store_true",
                    help="with --pc2 --skin-solve: the temporal filter on what the solve adds")
+    p.add_argument("--state-in", metavar="S.json",
+                   help="with --pc2 or --jiggle: a farm chunk continues the simulation (the PC2's and the jiggled "
+                        "Action's) from the state file the chunk before it wrote (--state-out), instead of replaying "
+                        "from --jiggle-start (default: the state's start); it may be the --state-out file")
+    p.add_argument("--state-out", metavar="S.json",
+                   help="with --pc2 or --jiggle: write the simulation state of frame B - 1 of --bake A-B, for the next "
+                        "chunk's --state-in (chunks then stitch bit for bit to one bake)")
     p.add_argument("--gltf", metavar="FILE", help="export skin + armature + helper bones to glTF")
     p.add_argument("-o", "--output", metavar="FILE.blend", help="save the result")
     return p.parse_args(argv)
@@ -222,6 +233,35 @@ def parse_range(text):
     return a, b
 
 
+def action_state(path, beside):
+    """The jiggled Action's state file: `path` itself, or (beside a PC2's) <path without .json>.action.json."""
+    if not path or not beside:
+        return path
+    root, ext = os.path.splitext(path)
+    return f"{root}.action{ext or '.json'}"
+
+
+def chunk_states(state_in, state_out):
+    """The state_in / state_out keywords of a chunk's bake: state_in is copied first to a file of its own (read
+    before the bake writes state_out, which may be the same file)."""
+    chunk = {}
+    if state_in:
+        path = os.path.abspath(state_in)
+        try:
+            with open(path, encoding="utf-8") as f:
+                text = f.read()
+        except OSError as e:
+            fail(f"--state-in {path}: cannot read it ({e.strerror or e})")
+        import tempfile
+        handle, copy = tempfile.mkstemp(prefix="myoskin_state_", suffix=".json")
+        with os.fdopen(handle, "w", encoding="utf-8") as f:
+            f.write(text)
+        chunk["state_in"] = copy
+    if state_out:
+        chunk["state_out"] = os.path.abspath(state_out)
+    return chunk
+
+
 def main(argv):
     args = parse_args(argv)
     for target in (args.output, args.pc2, args.gltf):
@@ -276,19 +316,31 @@ def main(argv):
     frames = parse_range(args.bake) if args.bake else None
     if args.jiggle and not frames:
         fail("--jiggle needs --bake A-B")
+    jiggled = bool(args.jiggle or state.jiggle)
+    if (args.state_in or args.state_out) and not (args.pc2 or (frames and jiggled)):
+        fail("--state-in / --state-out need --pc2 or --jiggle (they stitch the chunks of a bake)")
+    # The jiggled Action's state goes to a file of its own beside the PC2's when both are baked (the Action's joints
+    # take the painted jiggle map per joint, the PC2 per vertex, so their springs' goals can differ).
+    both = bool(args.pc2 and jiggled)
+    pc2_chunk = chunk_states(args.state_in, args.state_out)
+    action_chunk = chunk_states(action_state(args.state_in, both), action_state(args.state_out, both))
     if frames:
         if args.jiggle:
             state.jiggle = True
         extra = {"jiggle_start": args.jiggle_start} if args.jiggle_start is not None else {}
+        if state.jiggle:  # a chunk's Action continues the jiggle from the state too
+            extra.update(action_chunk)
         run_op(bpy.ops.myoskin.bake_action, frame_start=frames[0], frame_end=frames[1], jiggle=bool(state.jiggle),
                **extra)
         log(f"baked muscle joints{' with jiggle' if state.jiggle else ''} over frames {frames[0]}-{frames[1]}")
     if args.pc2:
         if not frames:
             fail("--pc2 needs --bake A-B for its frame range")
+        if args.jiggle_start is not None:
+            pc2_chunk["simulation_start"] = args.jiggle_start
         run_op(bpy.ops.myoskin.bake_pc2, filepath=os.path.abspath(args.pc2), frame_start=frames[0],
                frame_end=frames[1], skin_solve=args.skin_solve, jiggle=bool(state.jiggle),
-               temporal_filter=args.filter)
+               temporal_filter=args.filter, **pc2_chunk)
         written = addon("operators.rig").pc2_paths(os.path.abspath(args.pc2), addon("binding").bound_skins(arm))
         log(f"wrote {', '.join(written)}")
     if args.gltf:

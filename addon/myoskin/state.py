@@ -40,6 +40,10 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
                                           (Unbind restores them exactly)
     skin_obj["myoskin_added_groups"]      the skeleton bones' vertex groups Bind created (bones the mesh had
                                           no group of); Unbind removes them again
+        .jiggle, .skin_solve, .temporal_filter, .jiggle_frequency/damping/amount   the Dynamics panel's settings
+    skin_obj vertex group "myoskin_jiggle"  the painted jiggle map (dynamics.py)
+    skin_obj["myoskin_sculpt"] + mesh attributes myoskin_sculpt_delta / myoskin_sculpt_framed   sculpt deltas
+                                          (dynamics.py: JSON description + the core's local deltas per vertex)
 
 Converting this to and from core Muscle lists is muscle_io's job; no core call here (only property
 definitions and their update callbacks, which hand the work to the layers above through runtime.dispatch;
@@ -201,6 +205,9 @@ class MyoskinRigState(bpy.types.PropertyGroup):
     skin_solve: BoolProperty(name="Skin Solve", default=False,
                              description="Bake PC2 relaxes the skin every frame and pushes it out of the posed muscles "
                                          "so it slides over them (Gray & Hutchinson's skin solve)")
+    temporal_filter: BoolProperty(name="Temporal Filter", default=True,
+                                  description="With Skin Solve: Bake PC2 pulls back what the solve adds where it "
+                                              "jitters from frame to frame (smooth motion passes unchanged)")
     jiggle_frequency: FloatProperty(name="Frequency", default=5.0, min=0.05, soft_max=20.0,
                                     description="Natural frequency in Hz of a muscle of the median size (smaller "
                                                 "muscles are stiffer)")

@@ -65,12 +65,14 @@ from fake_layout import draw_panel  # noqa: E402  (UILayout stand-in)
 
 
 PANELS = ("MYOSKIN_PT_main", "MYOSKIN_PT_extract", "MYOSKIN_PT_edit", "MYOSKIN_PT_bind", "MYOSKIN_PT_bake",
+          "MYOSKIN_PT_dynamics",
           "MYOSKIN_PT_skin_muscles")
 OPERATORS = ("add_synthetic_arm", "character_info", "extract_muscles", "add_muscle_from_region", "remove_muscle",
              "mirror_muscle", "select_muscle", "refresh_muscles", "snap_locator", "bind", "unbind", "bake_action",
-             "export_gltf", "bake_pc2")
+             "export_gltf", "bake_pc2", "capture_sculpt", "remove_sculpt", "add_jiggle_map")
 UNDO_OPERATORS = ("add_synthetic_arm", "extract_muscles", "add_muscle_from_region", "remove_muscle", "mirror_muscle",
-                  "refresh_muscles", "snap_locator", "bind", "unbind", "bake_action")
+                  "refresh_muscles", "snap_locator", "bind", "unbind", "bake_action", "capture_sculpt", "remove_sculpt",
+                  "add_jiggle_map")
 
 
 # ------------------------------------------------------------------------------------------------

@@ -327,6 +327,52 @@ def test_gltf_export_carries_the_morph_target_and_its_weights_animation():
     assert elbow.min() == 0.0 and abs(elbow.max() - 1.0) < 1e-5
 
 
+def test_bake_pc2_includes_the_correctives_and_shape_keys():
+    """Bake PC2 skins the shape key mix Blender evaluates on each frame (the corrective driven on at the pose, an
+    animated artist's key): the cache equals Blender's posed skin to 1e-5 of the size."""
+    arm, skin = new_arm(bound=True)
+    size = size_of(skin)
+    set_pose(arm, {"forearm": (100.0, (1.0, 0.0, 0.0))})
+    sculpt, _posed = sculpt_points(skin, arm, "forearm")
+    assert bpy.ops.myoskin.add_corrective(bone="forearm", source_object=sculpted_copy(skin, sculpt).name,
+                                          name="elbow") == {'FINISHED'}
+    # an artist's key animated 0 -> 0.7 over the same frames (a bump on the upper arm)
+    extra = skin.shape_key_add(name="artist", from_mix=False)
+    basis = module("blender_io").mesh_vertices(skin.data)
+    shoulder = np.array(arm.data.bones["forearm"].head_local) * 0.5
+    d = np.linalg.norm(basis - shoulder, axis=1) / (0.2 * size)
+    bump = np.where(d < 1.0, (1.0 - np.minimum(d, 1.0) ** 2) ** 3, 0.0)[:, None] * np.array([0.03 * size, 0.0, 0.0])
+    extra.data.foreach_set("co", (basis + bump).astype(np.float32).ravel())
+    pb = arm.pose.bones["forearm"]
+    for frame, degrees, value in ((1, 0.0, 0.0), (5, 100.0, 0.7)):
+        set_pose(arm, {"forearm": (degrees, (1.0, 0.0, 0.0))})
+        pb.keyframe_insert("rotation_quaternion", frame=frame)
+        extra.value = value
+        extra.keyframe_insert("value", frame=frame)
+    path = os.path.join(TMP, "keys.pc2")
+    assert bpy.ops.myoskin.bake_pc2(filepath=path, frame_start=1, frame_end=5) == {'FINISHED'}
+    frames = runner.core().read_pc2(path)["frames"]
+    bpy.context.scene.frame_set(5)
+    module("live").update_armature(arm, force=True)
+    assert key_value(skin, "elbow") > 0.99 and abs(key_value(skin, "artist") - 0.7) < 1e-6
+    blender = evaluated(skin)
+    err = float(np.linalg.norm(frames[4] - blender, axis=1).max()) / size
+    keys = module("dynamics").ShapeKeyMix(skin)
+    without = skin.data.shape_keys.key_blocks
+    for kb in without:
+        kb.mute = kb.name in ("elbow", "artist")
+    plain = evaluated(skin)
+    for kb in without:
+        kb.mute = False
+    moved = float(np.linalg.norm(blender - plain, axis=1).max()) / size
+    print(f"  Bake PC2 with the corrective on and an animated key at 0.7: {err:.1e} of the size off Blender's skin "
+          f"(the keys move it {moved:.3f} of the size; {len(keys.names)} keys mixed)")
+    assert moved > 0.01
+    assert err < CORE, err
+    assert float(np.linalg.norm(frames[0] - module("blender_io").mesh_vertices(skin.data), axis=1).max()) / size \
+        < REPRODUCE, "at rest the correctives and the animated key are off"
+
+
 def test_the_panel_lists_the_correctives_and_offers_add_from_the_active_shape_key():
     from fake_layout import draw_panel
     arm, skin = new_arm()

@@ -5,6 +5,7 @@ Asserts: a bake with jiggle keys joints that differ from the plain bake after th
 amount that decays; the baked keys equal the core's JiggleTrack; a farm chunk (keyed over its own range,
 simulated from the first frame) gives the same keys as one bake; a muscle's own frequency changes only the
 result; bad ranges are refused with a message.
+PC2 with dynamics, farms, sculpt deltas and the Dynamics panel: test_dynamics_pc2.py.
 """
 import os
 import sys

@@ -735,3 +735,94 @@ TEST(Simulation, BadInput) {
   EXPECT_NE(test::inputErrorOf([&] { bakeAll(ok, 0, 3); }).find("outside"), std::string::npos);
   EXPECT_NE(test::inputErrorOf([&] { bakeAll(ok, 5, 3); }), "");
 }
+
+TEST(Simulation, VertexInfluenceZeroIsPlainSkinningOneIsFullJiggle) {
+  const Bound b;
+  const PoseSequence seq = sineSwing(24, 50.0, 1.2, 1.2, 2.0);
+  SimulationOptions jig, plain;
+  jig.jiggle = true;
+  Simulation full(limb().skin, limb().skeleton, &b.rig, b.skinner, seq, jig);
+  Simulation still(limb().skin, limb().skeleton, &b.rig, b.skinner, seq, plain);
+  // Painted 0 on the first half of the vertices, 1 on the rest.
+  const int V = static_cast<int>(limb().skin.vertices.rows());
+  SimulationOptions painted = jig;
+  painted.jiggleVertexInfluence.assign(V, 1.0);
+  std::fill(painted.jiggleVertexInfluence.begin(), painted.jiggleVertexInfluence.begin() + V / 2, 0.0);
+  Simulation mixed(limb().skin, limb().skeleton, &b.rig, b.skinner, seq, painted);
+  PointsF f, s, m;
+  full.frame(30, f);
+  still.frame(30, s);
+  mixed.frame(30, m);
+  ASSERT_GT((f - s).cwiseAbs().maxCoeff(), 1e-4) << "the jiggle must move the skin at this frame";
+  EXPECT_EQ(m.topRows(V / 2), s.topRows(V / 2)) << "painted 0: plain skinning, bit for bit";
+  EXPECT_EQ(m.bottomRows(V - V / 2), f.bottomRows(V - V / 2)) << "painted 1: the full jiggle, bit for bit";
+  // Half: half way.
+  painted.jiggleVertexInfluence.assign(V, 0.5);
+  Simulation half(limb().skin, limb().skeleton, &b.rig, b.skinner, seq, painted);
+  half.frame(30, m);
+  EXPECT_LT((m - 0.5f * (f + s)).cwiseAbs().maxCoeff(), 1e-6 * kSize);
+  painted.jiggleVertexInfluence[3] = 1.5;
+  EXPECT_NE(test::inputErrorOf([&] { Simulation(limb().skin, limb().skeleton, &b.rig, b.skinner, seq, painted); })
+                .find("outside 0..1"),
+            std::string::npos);
+  painted.jiggleVertexInfluence.resize(5);
+  EXPECT_NE(test::inputErrorOf([&] { Simulation(limb().skin, limb().skeleton, &b.rig, b.skinner, seq, painted); }), "");
+}
+
+TEST(Simulation, ShapeOffsetsEqualSkinningTheOffsetMesh) {
+  const Bound b;
+  const PoseSequence seq = swingThenStop(24, 90.0, 0.4, 1.0);
+  const SkinWeights w = computeHybridWeights(limb().skin, limb().weights, b.rig);
+  const int joints = limb().skeleton.numBones() + b.rig.numJoints();
+  // An offset (a shape key) on frame 10 only: the same as a skinner built on the offset rest mesh.
+  const Points offset = sculptOf(limb().skin.vertices) - limb().skin.vertices;
+  std::vector<PointsF> offsets(seq.frames.size());
+  offsets[9] = offset.cast<float>();
+  SimulationOptions o;
+  Simulation sim(limb().skin, limb().skeleton, &b.rig, b.skinner, seq, o);
+  sim.setShapeOffsets(offsets);
+  Mesh shaped = limb().skin;
+  shaped.vertices += offsets[9].cast<double>();
+  auto shapedSkinner = std::make_shared<Skinner>(shaped.vertices, w, joints);
+  Simulation ref(shaped, limb().skeleton, &b.rig, shapedSkinner, seq, o);
+  Simulation none(limb().skin, limb().skeleton, &b.rig, b.skinner, seq, o);
+  PointsF got, want, plain;
+  sim.frame(10, got);
+  ref.frame(10, want);
+  none.frame(10, plain);
+  ASSERT_GT((want - plain).cwiseAbs().maxCoeff(), 1e-3);
+  EXPECT_LT((got - want).cwiseAbs().maxCoeff(), 1e-6 * kSize);
+  sim.frame(11, got);
+  none.frame(11, plain);
+  EXPECT_EQ(got, plain) << "frames without offsets are plain skinning";
+  offsets.pop_back();
+  EXPECT_NE(test::inputErrorOf([&] { sim.setShapeOffsets(offsets); }), "");
+}
+
+TEST(SculptDeltas, FromStoredLocalDeltasEqualsTheOriginal) {
+  const Mesh& skin = limb().skin;
+  const Points sculpted = sculptOf(skin.vertices);
+  SculptDeltas deltas(skin.vertices, skin.triangles, sculpted);
+  SculptDeltas stored(skin.triangles, deltas.localDeltas(), deltas.framed());
+  ASSERT_EQ(stored.numVertices(), deltas.numVertices());
+  const Mat3 R = Eigen::AngleAxisd(0.7, Vec3(0.1, 0.9, -0.4).normalized()).toRotationMatrix();
+  const Points moved = skin.vertices * R.transpose();
+  Points a, c;
+  deltas.apply(moved, a);
+  stored.apply(moved, c);
+  EXPECT_EQ(a, c);
+  // On the sculpt frame through a simulation: the sculpt to 1e-6 of the size.
+  const Bound b;
+  PoseSequence rest;
+  rest.frames.assign(3, limbPose(0.0));
+  Simulation sim(skin, limb().skeleton, &b.rig, b.skinner, rest, SimulationOptions{});
+  PointsF reference;
+  sim.frame(2, reference);
+  SculptDeltas fromFrame(reference.cast<double>(), skin.triangles, sculptOf(reference.cast<double>()));
+  sim.setSculpt(SculptDeltas(skin.triangles, fromFrame.localDeltas(), fromFrame.framed()));
+  PointsF p;
+  sim.frame(2, p);
+  EXPECT_LT((p.cast<double>() - sculptOf(reference.cast<double>())).cwiseAbs().maxCoeff(), 1e-6 * kSize);
+  std::vector<char> shortFlags(5, 1);
+  EXPECT_NE(test::inputErrorOf([&] { SculptDeltas(skin.triangles, deltas.localDeltas(), shortFlags); }), "");
+}

@@ -18,13 +18,15 @@ LAYERS = {
     # core data: the properties stored in the .blend
     "state": 2,
     # muscle and rig services
-    "muscle_io": 3, "binding": 3, "core_skin": 2, "correctives": 3,
+    "muscle_io": 3, "binding": 3, "core_skin": 2, "correctives": 3, "dynamics": 3,
     # runtime: application handlers and live update
     "live": 4, "handlers": 4,
     # operators, panels, preferences, the batch entry point
     "preferences": 5, "batch": 5,
     "operators": 5, "operators.character": 5, "operators.muscles": 5, "operators.rig": 5, "operators.correctives": 5,
+    "operators.dynamics": 5,
     "panels": 5, "panels.common": 5, "panels.modifier": 5, "panels.sidebar": 5, "panels.correctives": 5,
+    "panels.dynamics": 5,
     # the package: registers everything
     "": 6,
 }

@@ -170,3 +170,60 @@ def test_jiggle_track_filter_and_sculpt_deltas(core, arm_files):
     assert np.abs(deltas.apply(v @ rot.T) - sculpt @ rot.T).max() < 1e-6 * np.ptp(v, axis=0).max()
     with pytest.raises(ValueError, match="vertices"):
         core.SculptDeltas(v, character.triangles, sculpt[:10])
+
+
+def test_simulate_vertex_influence_shape_offsets_stored_sculpt_and_track_states(core, arm_files, tmp_path):
+    """The add-on's PC2 inputs: a per-vertex jiggle map (0: plain skinning, 1: the full jiggle), per-frame shape
+    offsets (= skinning the offset mesh), sculpt deltas from stored local deltas (= the sculpt at its frame), and a
+    JiggleTrack chunk continued from a state file (= one track)."""
+    d = arm_files
+    character = core.load_character(str(d / "arm.obj"))
+    rig = core.MuscleRig(character, core.read_muscles(str(d / "muscles.json")))
+    joints, weights = core.hybrid_weights(character, rig)
+    count = character.num_bones + len(rig.joint_names)
+    skinner = core.Skinner(character.vertices, joints, weights, count)
+    poses = swing_poses(core, character)
+    v = np.asarray(character.vertices)
+    size = np.ptp(v, axis=0).max()
+    plain = core.simulate(character, skinner, poses, rig, 24.0, 1)
+    full = core.simulate(character, skinner, poses, rig, 24.0, 1, jiggle=True)
+    zero = np.arange(len(v)) % 3 == 0
+    w = np.where(zero, 0.0, 1.0)
+    mixed = core.simulate(character, skinner, poses, rig, 24.0, 1, jiggle=True, jiggle_vertex_influence=w)
+    assert np.abs(full - plain)[:, ~zero].max() > 1e-4 * size
+    assert np.array_equal(mixed[:, zero], plain[:, zero])
+    assert np.abs(mixed[:, ~zero] - full[:, ~zero]).max() <= 1e-6 * size
+    with pytest.raises(ValueError, match="outside 0..1"):
+        core.simulate(character, skinner, poses, rig, 24.0, 1, jiggle=True, jiggle_vertex_influence=w * 2)
+    # Shape offsets on frame 10: skinning the offset mesh.
+    offset = (0.01 * size * np.sin(v * 30)).astype(np.float32)
+    offsets = np.zeros((len(poses), len(v), 3), dtype=np.float32)
+    offsets[9] = offset
+    keyed = core.simulate(character, skinner, poses, rig, 24.0, 1, shape_offsets=offsets)
+    again = core.Skinner(v + offset, joints, weights, count)
+    want = core.simulate(character, again, poses, rig, 24.0, 1)
+    assert np.abs(keyed[9] - want[9]).max() <= 1e-6 * size and np.abs(keyed[9] - plain[9]).max() > 1e-3 * size
+    assert np.array_equal(keyed[10], plain[10])
+    with pytest.raises(ValueError, match="shape_offsets"):
+        core.simulate(character, skinner, poses, rig, 24.0, 1, shape_offsets=offsets[:5])
+    # Stored sculpt deltas (local deltas + frame flags) give the sculpt at their frame.
+    sculpt = np.array(plain[7], dtype=np.float64) + 0.002 * size * np.sin(np.array(plain[7]) * 40)
+    captured = core.SculptDeltas(np.array(plain[7], dtype=np.float64), character.triangles, sculpt)
+    stored = core.SculptDeltas.from_local(character.triangles, captured.local_deltas, captured.framed)
+    assert captured.framed.dtype == bool and captured.framed.all()
+    out = core.simulate(character, skinner, poses, rig, 24.0, 1, sculpt_deltas=stored)
+    assert np.abs(out[7] - sculpt).max() <= 1e-6 * size
+    with pytest.raises(ValueError, match="framed"):
+        core.SculptDeltas.from_local(character.triangles, captured.local_deltas, captured.framed[:3])
+    # A JiggleTrack chunk from a state file: the frames after it equal one track's.
+    one = core.JiggleTrack(character, rig, poses, 24.0)
+    state = tmp_path / "track.json"
+    one.write_state(str(state), 11)
+    assert json.loads(state.read_text())["frame"] == 11
+    chunk = core.JiggleTrack(character, rig, poses, 24.0)
+    assert chunk.restore_state(str(state)) == 11
+    for frame in (12, 17, 24):
+        assert np.array_equal(chunk.joint_matrices(frame), one.joint_matrices(frame))
+    other = core.JiggleTrack(character, rig, poses, 30.0)
+    with pytest.raises(ValueError, match="fps"):
+        other.restore_state(str(state))

@@ -8,7 +8,8 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, IntProperty, StringProperty
 
-from .. import binding, blender_io, core_loader, core_skin, correctives, gltf_io, live, muscle_io, rig_io, runtime
+from .. import (binding, blender_io, core_loader, core_skin, correctives, dynamics, gltf_io, live, muscle_io,
+               rig_io, runtime)
 from .muscles import _MuscleOperator, resolve_extracted, resolve_rig
 from ..state import rig_state
 
@@ -121,6 +122,13 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
                               description="Jiggle: the frame the simulation starts from at rest (below Start: a farm "
                                           "chunk of a longer bake, keyed from Start but simulated from here, so "
                                           "chunks agree with one bake; default: Start)")
+    state_in: StringProperty(name="State In", subtype='FILE_PATH', default="",
+                             description="Jiggle, a farm chunk: the simulation state file the chunk before wrote "
+                                         "(State Out; Bake PC2's works too), so the jiggle continues from it instead "
+                                         "of replaying the frames before Start")
+    state_out: StringProperty(name="State Out", subtype='FILE_PATH', default="",
+                              description="Jiggle: write the simulation state of frame End - 1 for the next chunk's "
+                                          "State In (the format Bake PC2 writes)")
 
     def run(self, context):
         _skins, arm, state = require_bound(context)
@@ -143,9 +151,26 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
         rig = live.live_rig(arm)
         try:
             sim_start = self.frame_start if self.jiggle_start == -1000000 else self.jiggle_start
+            state_in = bpy.path.abspath(self.state_in) if self.state_in else ""
+            state_out = bpy.path.abspath(self.state_out) if self.state_out else ""
+            if (state_in or state_out) and not self.jiggle:
+                raise ValueError("State In / State Out carry the jiggle's state: turn Jiggle on")
+            sampled_from = None
+            if state_in:
+                state_frame, state_start = dynamics.state_file_frames(state_in)
+                if self.jiggle_start == -1000000:
+                    sim_start = state_start
+                if state_frame > self.frame_start:
+                    raise ValueError(f"The simulation state {state_in} is of frame {state_frame}, after Start "
+                                     f"{self.frame_start}: give the state the chunk before this one wrote")
+                sampled_from = max(sim_start, state_frame)
+            if state_out:
+                dynamics.check_state_target(state_out)
             if sim_start > self.frame_start:
                 raise ValueError(f"Simulation Start {sim_start} is after Start {self.frame_start}")
-            track = jiggle_track(context, arm, rig, sim_start, self.frame_end) if self.jiggle else None
+            track = jiggle_track(context, arm, rig, sim_start, self.frame_end, sampled_from) if self.jiggle else None
+            if state_in:  # the frames before the state are never evaluated: the state carries them
+                track[0].restore_state(state_in)
             for frame in range(self.frame_start, self.frame_end + 1):
                 k = frame - sim_start
                 scene.frame_set(frame)
@@ -160,6 +185,8 @@ class MYOSKIN_OT_bake_action(_MuscleOperator, bpy.types.Operator):
                     for path in ("location", "rotation_quaternion", "scale"):
                         pb.keyframe_insert(path, frame=frame, group=n)
                 wm.progress_update(frame)
+            if state_out:
+                track[0].write_state(state_out, max(sim_start, self.frame_end - 1))
         finally:
             wm.progress_end()
         state.live = False  # the baked Action plays now (also without the add-on); Live Update mutes it again
@@ -189,7 +216,7 @@ def jiggle_params(state, rig, track):
     return params if changed else None
 
 
-JIGGLE_GROUP = "myoskin_jiggle"  # a vertex group painted on a skin: where its muscles may jiggle (0..1)
+JIGGLE_GROUP = dynamics.JIGGLE_GROUP  # a vertex group painted on a skin: where its muscles may jiggle (0..1)
 
 
 def jiggle_influence(skins, rig, default):
@@ -216,34 +243,48 @@ def jiggle_influence(skins, rig, default):
     return np.asarray(default, dtype=np.float64) * scale
 
 
-def jiggle_settings(context, arm, rig, skins, poses):
+def jiggle_settings(context, arm, rig, skins, poses, per_vertex=False):
     """The rig's jiggle settings as JiggleTrack / simulate keywords: frequency, damping ratio, amount, the
-    per-muscle overrides (params) and the painted influence (JIGGLE_GROUP)."""
+    per-muscle overrides (params) and the joints' influence: the default (fading toward the tendons), scaled by
+    the painted JIGGLE_GROUP per joint for the Action (per_vertex False), or the default alone when the group is
+    applied per vertex (the PC2 route: dynamics.vertex_influence)."""
     state = rig_state(arm)
     settings = dict(frequency=state.jiggle_frequency, damping_ratio=state.jiggle_damping, amount=state.jiggle_amount)
     scene = context.scene
     defaults = core_loader.core().JiggleTrack(rig.character, rig.rig, poses[:1], scene.render.fps / scene.render.fps_base,
                                               1.0, **settings)
     settings["params"] = jiggle_params(state, rig, defaults)
-    settings["influence"] = jiggle_influence(skins, rig, defaults.influence)
+    settings["influence"] = None if per_vertex else jiggle_influence(skins, rig, defaults.influence)
     return settings
 
 
 def sampled_poses(context, arm, rig, start, end):
     """#F by #B by 4 by 4: the evaluated skeleton (IK and constraints included) of every frame start..end."""
-    poses = []
+    return sampled_frames(context, arm, rig, start, end)[0]
+
+
+def sampled_frames(context, arm, rig, start, end, keyed=(), mixes=None):
+    """(#F by #B by 4 by 4 evaluated skeleton poses of frames start..end, {mesh name: #F lists of the shape key
+    values Blender uses on that frame} for the meshes `keyed` with their dynamics.ShapeKeyMix in `mixes`)."""
+    poses, values = [], {s.name: [] for s in keyed}
     for frame in range(start, end + 1):
         context.scene.frame_set(frame)
-        poses.append(live.evaluated_pose(arm, rig, context.evaluated_depsgraph_get()))
-    return np.ascontiguousarray(poses, dtype=np.float64)
+        depsgraph = context.evaluated_depsgraph_get()
+        poses.append(live.evaluated_pose(arm, rig, depsgraph))
+        for skin in keyed:
+            values[skin.name].append(mixes[skin.name].values(skin, depsgraph))
+    return np.ascontiguousarray(poses, dtype=np.float64), values
 
 
-def jiggle_track(context, arm, rig, start, end):
+def jiggle_track(context, arm, rig, start, end, sampled_from=None):
     """(core JiggleTrack over frames start..end, #F by #B by 4 by 4 skeleton poses it was sampled from) at the
     scene's frame rate with the rig's Jiggle settings. Deterministic: the same frames give the same track, so
-    separate bakes of a range agree."""
+    separate bakes of a range agree. sampled_from: a chunk that restores a state of that frame samples the
+    skeleton from there on only (the first sampled pose stands in for the frames before, never evaluated)."""
     scene = context.scene
-    poses = sampled_poses(context, arm, rig, start, end)
+    sampled_from = start if sampled_from is None else max(start, sampled_from)
+    poses = sampled_poses(context, arm, rig, sampled_from, end)
+    poses = np.ascontiguousarray(np.concatenate([np.repeat(poses[:1], sampled_from - start, axis=0), poses]))
     settings = jiggle_settings(context, arm, rig, binding.bound_skins(arm), poses)
     track = core_loader.core().JiggleTrack(rig.character, rig.rig, poses, scene.render.fps / scene.render.fps_base,
                                            float(start), **settings)
@@ -306,6 +347,15 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
                                   description="With Skin Solve: pull back what the solve adds where it jitters from "
                                               "frame to frame (each vertex against the line through its neighbouring "
                                               "frames; smooth motion passes unchanged)")
+    simulation_start: IntProperty(name="Simulation Start", default=-1000000,
+                                  description="Jiggle: the frame the simulation starts from at rest (below Start: a "
+                                              "farm chunk of a longer bake; default: Start)")
+    state_in: StringProperty(name="State In", subtype='FILE_PATH', default="",
+                             description="A farm chunk: the simulation state file the chunk before this one wrote "
+                                         "(State Out), so the jiggle continues from it instead of replaying")
+    state_out: StringProperty(name="State Out", subtype='FILE_PATH', default="",
+                              description="Write the simulation state at the end of this bake, for the next chunk's "
+                                          "State In (the chunks then stitch bit for bit to one bake)")
     mute_armature: BoolProperty(name="Mute Armature Modifier", default=True,
                                 description="With Add Mesh Cache Modifier: switch the mesh's Armature modifier off "
                                             "(the cache replaces its result, so it would only cost time); Unbind "
@@ -317,8 +367,16 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
             raise ValueError(f"Frame range {self.frame_start}-{self.frame_end} is empty")
         path = bpy.path.abspath(self.filepath)
         paths = pc2_paths(path, skins)
+        state_in = bpy.path.abspath(self.state_in) if self.state_in else ""
+        state_out = bpy.path.abspath(self.state_out) if self.state_out else ""
+        if state_out:
+            dynamics.check_state_target(state_out)
+        sim_start = None if self.simulation_start == -1000000 else self.simulation_start
+        if sim_start is None and state_in:  # a chunk: the simulation the state file belongs to
+            sim_start = dynamics.state_file_frames(state_in)[1]
         frames = bake_skin_frames(context, skins, arm, self.frame_start, self.frame_end, self.skin_solve,
-                                  self.jiggle, self.temporal_filter)
+                                  self.jiggle, self.temporal_filter, sim_start=sim_start, state_in=state_in,
+                                  state_out=state_out)
         os.makedirs(os.path.dirname(os.path.abspath(path)) or ".", exist_ok=True)
         for skin, mesh_path, mesh_frames in zip(skins, paths, frames):
             core_loader.core().write_pc2(mesh_path, mesh_frames, float(self.frame_start), 1.0)
@@ -335,30 +393,57 @@ class MYOSKIN_OT_bake_pc2(_MuscleOperator, bpy.types.Operator):
         return f"Baked {count} frames of {len(skins)} meshes to " + ", ".join(paths)
 
 
-def bake_skin_frames(context, skins, arm, start, end, skin_solve=False, jiggle=False, temporal_filter=False):
-    """Per mesh of `skins`, #frames by #V by 3 float32 skin positions (mesh object space) computed by the core:
-    the anchored skin, or Equation 3 (the skinner in the mode Blender skins the mesh with), through the core's
-    simulation when any of jiggle (the rig's Jiggle settings), skin_solve (the skin solved against the posed
-    muscles) or temporal_filter is on. The skeleton is sampled once per frame for all meshes."""
+def bake_skin_frames(context, skins, arm, start, end, skin_solve=False, jiggle=False, temporal_filter=False,
+                     sim_start=None, state_in="", state_out="", sculpt=True):
+    """Per mesh of `skins`, #frames by #V by 3 float32 skin positions (mesh object space) of frames start..end
+    computed by the core: the anchored skin, or Equation 3 (the skinner in the mode Blender skins the mesh with)
+    on the mesh's shape key mix of each frame (correctives included, as Blender evaluates it), through the core's
+    simulation when any of jiggle (the rig's Jiggle settings; the painted JIGGLE_GROUP scales it per vertex),
+    skin_solve (the skin solved against the posed muscles), temporal_filter, stored sculpt deltas (`sculpt`) or a
+    state file is on. sim_start: the frame the simulation starts from (default: start; a farm chunk of a longer
+    bake starts later); state_in: the state file a chunk ending before `start` wrote (the jiggle continues from
+    it, frames before it are not sampled); state_out: where to write the state for the next chunk. The skeleton
+    is sampled once per frame for all meshes."""
     core = core_loader.core()
     rig = live.live_rig(arm)
     names = rig.bone_names + rig.joint_names
     anchored = {name: (frame, deformer) for name, frame, deformer in rig.anchored}
     scene = context.scene
+    sim_start = start if sim_start is None else sim_start
+    if sim_start > start:
+        raise ValueError(f"Simulation Start {sim_start} is after Start {start}")
+    sampled_from = sim_start  # without a state a chunk replays from the simulation's start
+    if state_in:
+        state_frame, state_start = dynamics.state_file_frames(state_in)
+        if state_start != sim_start:
+            raise ValueError(f"The simulation state {state_in} is of a simulation from frame {state_start}, this bake "
+                             f"simulates from frame {sim_start}: give the same Simulation Start")
+        sampled_from = max(sim_start, min(start, state_frame))  # the core checks it is early enough for the chunk
+    meshes = [s for s in skins if s.name not in anchored]
+    mixes = {s.name: dynamics.ShapeKeyMix(s) for s in meshes}
+    keyed = [s for s in meshes if mixes[s.name].names]
+    # The temporal filter of the last two frames sees the two frames after the range (as in a longer bake), so a
+    # chunk's frames do not depend on where the chunk ends.
+    sample_end = end + 2 if temporal_filter and skin_solve else end
     current = scene.frame_current
     try:
-        poses = sampled_poses(context, arm, rig, start, end)
+        sampled, values = sampled_frames(context, arm, rig, sampled_from, sample_end, keyed, mixes)
     finally:
         scene.frame_set(current)
-    simulated = jiggle or skin_solve or temporal_filter
-    settings = jiggle_settings(context, arm, rig, skins, poses) if jiggle else {}
+    # Frames before the restored state are never evaluated by the core: the first sampled pose stands in for them.
+    poses = np.concatenate([np.repeat(sampled[:1], sampled_from - sim_start, axis=0), sampled])
+    first = start - sim_start  # index of `start` in poses
+    settings = jiggle_settings(context, arm, rig, skins, poses, per_vertex=True) if jiggle else {}
     rest_bones_inv = np.linalg.inv(np.asarray(rig.character.bone_rest))
     bind_inv = np.linalg.inv(np.asarray(rig.rig.bind_matrices))
     out = []
     for skin in skins:
+        deltas = dynamics.stored_sculpt(skin) if sculpt else None
         if skin.name in anchored:  # the anchored deformer: the core's AnchoredSkin of this mesh, per pose
             frame, deformer = anchored[skin.name]
-            posed = np.array([deformer.evaluate(pose) for pose in poses])
+            posed = np.array([deformer.evaluate(pose) for pose in poses[first:]])
+            if deltas is not None:
+                posed = np.array([deltas.apply(p) for p in posed])
             to_mesh = frame.to_mesh
         else:
             joints, weights = rig_io.read_combined_weights(skin, names)
@@ -368,17 +453,30 @@ def bake_skin_frames(context, skins, arm, start, end, skin_solve=False, jiggle=F
             # The mode Blender skins this mesh with (its Armature modifier's Preserve Volume), so the PC2 equals
             # Blender's skin; the transforms and rest matrices are in armature space, as the modifier's.
             skinner = binding.skinner_for(skin, arm, rig, rest, joints, weights)
+            offsets = None
+            if skin in keyed:  # the shape key mix of each frame, armature space (zeros: none that frame)
+                offsets = np.zeros((len(poses), len(rest), 3), dtype=np.float32)
+                mix = mixes[skin.name]
+                for k, frame_values in enumerate(values[skin.name]):
+                    d = mix.offsets(frame_values)
+                    if d is not None:
+                        offsets[sampled_from - sim_start + k] = d @ to_arm[:3, :3].T
+            influence = dynamics.vertex_influence(skin) if jiggle else None
+            simulated = (jiggle or skin_solve or temporal_filter or state_in or state_out or deltas is not None
+                         or offsets is not None)
             if simulated:
                 goal_weights = core.default_goal_weights(joints, weights, len(rig.bone_names)) if skin_solve else None
                 posed = core.simulate(
                     blender_io.character_from_blender(skin, arm), skinner, poses, rig.rig,
-                    scene.render.fps / scene.render.fps_base, start, jiggle=jiggle, filter=temporal_filter,
+                    scene.render.fps / scene.render.fps_base, sim_start, jiggle=jiggle, filter=temporal_filter,
                     skin_solve=goal_weights, jiggle_frequency=settings.get("frequency", 5.0),
                     jiggle_damping=settings.get("damping_ratio", 0.3), jiggle_amount=settings.get("amount", 1.0),
-                    jiggle_params=settings.get("params"), jiggle_influence=settings.get("influence"))
+                    jiggle_params=settings.get("params"), jiggle_influence=settings.get("influence"),
+                    jiggle_vertex_influence=influence, shape_offsets=offsets, sculpt_deltas=deltas,
+                    frames=(start, end), state_in=state_in or None, state_out=state_out or None)
             else:
-                posed = np.empty((len(poses), len(rest), 3), dtype=np.float32)
-                for k, pose in enumerate(poses):
+                posed = np.empty((end - start + 1, len(rest), 3), dtype=np.float32)
+                for k, pose in enumerate(poses[first:]):
                     joint_matrices = rig.rig.evaluate(pose)["joint_matrices"]
                     posed[k] = skinner.deform(np.concatenate([pose @ rest_bones_inv, joint_matrices @ bind_inv]))
         posed = np.asarray(posed, dtype=np.float64)

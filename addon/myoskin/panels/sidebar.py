@@ -237,28 +237,15 @@ class MYOSKIN_PT_bake(_WorkflowStep, bpy.types.Panel):
         row = layout.row(align=True)
         row.prop(ui, "frame_start")
         row.prop(ui, "frame_end")
-        col = layout.column(align=True)
-        col.prop(state, "jiggle")
-        if state.jiggle:
-            row = col.row(align=True)
-            row.prop(state, "jiggle_frequency")
-            row.prop(state, "jiggle_damping")
-            col.prop(state, "jiggle_amount")
-            if 0 <= state.active_index < len(state.muscles):
-                item = state.muscles[state.active_index]
-                row = col.row(align=True)
-                row.label(text=item.name)
-                row.prop(item, "jiggle_frequency", text="Hz")
-                row.prop(item, "jiggle_damping", text="Damping")
         op = layout.operator("myoskin.bake_action", icon='ACTION')
-        op.frame_start, op.frame_end, op.jiggle = ui.frame_start, ui.frame_end, state.jiggle
+        op.frame_start, op.frame_end, op.jiggle = ui.frame_start, ui.frame_end, False
         layout.prop(ui, "export_path")
         layout.operator("myoskin.export_gltf", icon='EXPORT').filepath = ui.export_path
         layout.prop(ui, "pc2_path")
-        layout.prop(state, "skin_solve")
         op = layout.operator("myoskin.bake_pc2", icon='FILE_CACHE')
         op.filepath, op.frame_start, op.frame_end = ui.pc2_path, ui.frame_start, ui.frame_end
-        op.skin_solve, op.jiggle, op.temporal_filter = state.skin_solve, state.jiggle, state.skin_solve
+        op.skin_solve = op.jiggle = op.temporal_filter = False
+        layout.label(text="Jiggle, skin solve, sculpt deltas: the Dynamics panel", icon='INFO')
 
 
 classes = (MYOSKIN_UL_muscles, MYOSKIN_UL_bone_roles, MYOSKIN_PT_main, MYOSKIN_PT_extract, MYOSKIN_PT_bone_roles,

@@ -158,12 +158,17 @@ class SculptDeltas {
   // reference: the surface as simulated at the sculpt frame; sculpted: the same vertices after sculpting (both
   // #V by 3); triangles #F by 3. Throws InputError on mismatched sizes, bad indices or non-finite values.
   SculptDeltas(const Points& reference, const Triangles& triangles, const Points& sculpted);
+  // Deltas captured before (localDeltas() and framed() of another SculptDeltas over the same mesh, e.g. stored
+  // in a file): #V by 3 local deltas and #V flags (1: in the local frame, 0: in world space). Throws InputError
+  // on mismatched sizes, bad indices or non-finite values.
+  SculptDeltas(const Triangles& triangles, const Points& localDeltas, const std::vector<char>& framed);
   ~SculptDeltas();
   SculptDeltas(SculptDeltas&&) noexcept;
   SculptDeltas& operator=(SculptDeltas&&) noexcept;
 
   int numVertices() const;
   const Points& localDeltas() const;   // #V by 3: (tangent, binormal, normal) components; world for frameless
+  const std::vector<char>& framed() const;  // #V: 1 where the delta is in the local frame, 0 where in world space
   // positions (#V by 3) with the detail added in their own local frames. out may alias positions. Per-frame
   // buffers are kept inside, so calls are not thread-safe against each other.
   void apply(const PointsF& positions, PointsF& out);
@@ -191,6 +196,11 @@ struct SimulationOptions {
   bool filter = false;
   TemporalFilterOptions filterOptions;
   double filterLengthScale = 0.0;            // 0: the skin's mean edge length
+  // Per skin vertex (#V, each in [0, 1]) or empty: the share of the jiggle that reaches the vertex (the painted
+  // map): skin = skinned without jiggle + w (skinned with the jiggled joints - skinned without jiggle), so 0 keeps
+  // the vertex exactly where plain skinning puts it and 1 gives the full jiggle. Costs a second skinning per
+  // frame; ignored without jiggle.
+  std::vector<double> jiggleVertexInfluence;
 };
 
 // Where a per-frame skin solve (collision against the muscles) plugs in: called on every raw frame after
@@ -230,6 +240,13 @@ class Simulation {
   // Adds detail sculpted on `frame`: the reference is this simulation's filtered frame (without detail).
   // sculpted: #V by 3.
   void setSculpt(const Points& sculpted, int frame);
+  // Adds detail captured before (deltas over this skin's #V vertices).
+  void setSculpt(SculptDeltas deltas);
+  // Offsets of the rest mesh before skinning per frame of the sequence (e.g. Blender's shape key mix):
+  // offsets[f - firstFrame()] is #V by 3 in the skinner's input space, or empty (no offset that frame); an empty
+  // list: none. Each offset d moves its skinned vertex by A d, A the vertex's blended skinning transform
+  // (Skinner::vertexTransforms), exactly as skinning the offset mesh would. Throws InputError on a bad count.
+  void setShapeOffsets(std::vector<PointsF> offsets);
 
   // The skinned (and jiggled, solved) positions of a frame, before filter and sculpt.
   void rawFrame(int frame, PointsF& out);

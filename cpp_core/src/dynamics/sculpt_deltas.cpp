@@ -75,16 +75,10 @@ struct SculptDeltas::Impl {
   }
 };
 
-SculptDeltas::SculptDeltas(const Points& reference, const Triangles& triangles, const Points& sculpted)
-    : impl_(std::make_unique<Impl>()) {
-  const Eigen::Index V = reference.rows();
-  if (sculpted.rows() != V)
-    throw InputError("sculpt deltas: the sculpt has " + std::to_string(sculpted.rows()) + " vertices, the surface " +
-                     std::to_string(V));
-  if (V == 0) throw InputError("sculpt deltas: the surface has no vertices");
-  if (!reference.allFinite() || !sculpted.allFinite())
-    throw InputError("sculpt deltas: the surface or the sculpt has a non-finite vertex");
-  Impl& d = *impl_;
+namespace {
+
+// The triangles of each vertex (CSR) and each vertex's tangent neighbour; InputError on a bad index.
+void buildAdjacency(SculptDeltas::Impl& d, Eigen::Index V, const Triangles& triangles) {
   d.triangles = triangles;
   d.neighbour.assign(V, -1);
   std::vector<int> count(V + 1, 0);
@@ -105,6 +99,21 @@ SculptDeltas::SculptDeltas(const Points& reference, const Triangles& triangles, 
   std::vector<int> fill(d.firstFace.begin(), d.firstFace.end() - 1);
   for (Eigen::Index f = 0; f < triangles.rows(); ++f)
     for (int k = 0; k < 3; ++k) d.faces[fill[triangles(f, k)]++] = static_cast<int>(f);
+}
+
+}  // namespace
+
+SculptDeltas::SculptDeltas(const Points& reference, const Triangles& triangles, const Points& sculpted)
+    : impl_(std::make_unique<Impl>()) {
+  const Eigen::Index V = reference.rows();
+  if (sculpted.rows() != V)
+    throw InputError("sculpt deltas: the sculpt has " + std::to_string(sculpted.rows()) + " vertices, the surface " +
+                     std::to_string(V));
+  if (V == 0) throw InputError("sculpt deltas: the surface has no vertices");
+  if (!reference.allFinite() || !sculpted.allFinite())
+    throw InputError("sculpt deltas: the surface or the sculpt has a non-finite vertex");
+  Impl& d = *impl_;
+  buildAdjacency(d, V, triangles);
   d.deltas.resize(V, 3);
   d.framed.assign(V, 0);
   for (Eigen::Index v = 0; v < V; ++v) {
@@ -119,12 +128,28 @@ SculptDeltas::SculptDeltas(const Points& reference, const Triangles& triangles, 
   }
 }
 
+SculptDeltas::SculptDeltas(const Triangles& triangles, const Points& localDeltas, const std::vector<char>& framed)
+    : impl_(std::make_unique<Impl>()) {
+  const Eigen::Index V = localDeltas.rows();
+  if (V == 0) throw InputError("sculpt deltas: no vertices");
+  if (static_cast<Eigen::Index>(framed.size()) != V)
+    throw InputError("sculpt deltas: " + std::to_string(framed.size()) + " frame flags for " + std::to_string(V) +
+                     " deltas");
+  if (!localDeltas.allFinite()) throw InputError("sculpt deltas: a delta is not finite");
+  Impl& d = *impl_;
+  buildAdjacency(d, V, triangles);
+  d.deltas = localDeltas;
+  d.framed.assign(V, 0);
+  for (Eigen::Index v = 0; v < V; ++v) d.framed[v] = framed[v] ? 1 : 0;
+}
+
 SculptDeltas::~SculptDeltas() = default;
 SculptDeltas::SculptDeltas(SculptDeltas&&) noexcept = default;
 SculptDeltas& SculptDeltas::operator=(SculptDeltas&&) noexcept = default;
 
 int SculptDeltas::numVertices() const { return impl_->numVertices(); }
 const Points& SculptDeltas::localDeltas() const { return impl_->deltas; }
+const std::vector<char>& SculptDeltas::framed() const { return impl_->framed; }
 
 void SculptDeltas::apply(const Points& positions, Points& out) { impl_->applyTo(positions, out); }
 

@@ -114,6 +114,10 @@ struct Simulation::Impl {
   std::vector<Mat4> transforms;
   SkinSolveHook hook;
   std::unique_ptr<SculptDeltas> sculpt;
+  std::vector<PointsF> shapeOffsets;      // per frame of the sequence (empty: none) or none at all
+  std::vector<Mat4> stillTransforms;      // the frame's transforms without jiggle (per-vertex influence)
+  PointsF still;                          // the frame skinned without jiggle
+  VertexTransforms affine;                // per vertex blended transforms (shape offsets)
   // A raw frame: the skinned (and jiggled) positions and, with a skin solve, the solved ones and what the solve
   // added (the filter's input).
   struct Frame {
@@ -131,18 +135,40 @@ struct Simulation::Impl {
                        std::to_string(start) + " to " + std::to_string(last()) + ")");
   }
 
+  // Skins frame f with `t`, the frame's shape offsets (if any) moved by each vertex's blended transform.
+  void skinWith(int f, const std::vector<Mat4>& t, PointsF& out) {
+    skinner->deform(t, out);
+    if (shapeOffsets.empty() || shapeOffsets[f - start].rows() == 0) return;
+    const PointsF& d = shapeOffsets[f - start];
+    skinner->vertexTransforms(t, affine);
+    for (Eigen::Index v = 0; v < out.rows(); ++v)
+      for (int r = 0; r < 3; ++r)
+        out(v, r) += static_cast<float>(affine(v, 4 * r) * d(v, 0) + affine(v, 4 * r + 1) * d(v, 1) +
+                                        affine(v, 4 * r + 2) * d(v, 2));
+  }
+
   void raw(int f, Frame& out) {
     checkFrame(f, "the");
     out.frame = INT32_MIN;
     const Pose& pose = poses.frames[f - start];
+    const bool perVertex = jiggle && !options.jiggleVertexInfluence.empty();
     if (rig) {
       rig->evaluate(pose, rigState, static_cast<bool>(hook));
+      if (perVertex) {
+        skinningTransforms(skeleton, pose, *rig, rigState, stillTransforms);
+        skinWith(f, stillTransforms, still);
+      }
       if (jiggle) jiggle->apply(f, rigState);
       skinningTransforms(skeleton, pose, *rig, rigState, transforms);
     } else {
       skeletonTransforms(skeleton, pose, transforms);
     }
-    skinner->deform(transforms, out.skinned);
+    skinWith(f, transforms, out.skinned);
+    if (perVertex) {  // skinned without jiggle + w (skinned with jiggle - skinned without)
+      const std::vector<double>& w = options.jiggleVertexInfluence;
+      for (Eigen::Index v = 0; v < out.skinned.rows(); ++v)
+        out.skinned.row(v) = still.row(v) + static_cast<float>(w[v]) * (out.skinned.row(v) - still.row(v));
+    }
     if (hook) {
       out.solved = out.skinned;
       hook(f, pose, rig ? &rigState : nullptr, out.solved);
@@ -224,6 +250,18 @@ Simulation::Simulation(const Mesh& skin, const Skeleton& skeleton, const MuscleR
       if (!m.allFinite()) throw InputError("simulation: pose " + std::to_string(f) + " has a non-finite bone matrix");
   }
   if (options.jiggle && !rig) throw InputError("simulation: jiggle needs muscles (a rig)");
+  if (!options.jiggleVertexInfluence.empty()) {
+    if (static_cast<int>(options.jiggleVertexInfluence.size()) != skin.numVertices())
+      throw InputError("simulation: the jiggle vertex influence has " +
+                       std::to_string(options.jiggleVertexInfluence.size()) + " values, the skin " +
+                       std::to_string(skin.numVertices()) + " vertices");
+    for (size_t v = 0; v < options.jiggleVertexInfluence.size(); ++v) {
+      const double w = options.jiggleVertexInfluence[v];
+      if (!(w >= 0.0 && w <= 1.0))
+        throw InputError("simulation: the jiggle vertex influence of vertex " + std::to_string(v) + " is " +
+                         std::to_string(w) + ", outside 0..1");
+    }
+  }
   d.triangles = skin.triangles;
   d.skeleton = skeleton;
   if (rig) d.rig.emplace(*rig);
@@ -262,6 +300,34 @@ void Simulation::setSculpt(const Points& sculpted, int frame) {
   PointsF reference;
   d.filtered(frame, reference);
   d.sculpt = std::make_unique<SculptDeltas>(reference.cast<double>(), d.triangles, sculpted);
+}
+
+void Simulation::setSculpt(SculptDeltas deltas) {
+  Impl& d = *impl_;
+  if (deltas.numVertices() != numVertices())
+    throw InputError("simulation: the sculpt deltas have " + std::to_string(deltas.numVertices()) +
+                     " vertices, the skin " + std::to_string(numVertices()));
+  d.sculpt = std::make_unique<SculptDeltas>(std::move(deltas));
+}
+
+void Simulation::setShapeOffsets(std::vector<PointsF> offsets) {
+  Impl& d = *impl_;
+  if (!offsets.empty() && offsets.size() != d.poses.frames.size())
+    throw InputError("simulation: " + std::to_string(offsets.size()) + " frames of shape offsets for a sequence of " +
+                     std::to_string(d.poses.frames.size()));
+  for (size_t f = 0; f < offsets.size(); ++f) {
+    const PointsF& o = offsets[f];
+    if (o.rows() == 0) continue;
+    if (o.rows() != numVertices() || o.cols() != 3)
+      throw InputError("simulation: the shape offsets of frame " + std::to_string(d.start + static_cast<int>(f)) +
+                       " are " + std::to_string(o.rows()) + " by " + std::to_string(o.cols()) + ", the skin has " +
+                       std::to_string(numVertices()) + " vertices");
+    if (!o.allFinite())
+      throw InputError("simulation: the shape offsets of frame " + std::to_string(d.start + static_cast<int>(f)) +
+                       " have a non-finite value");
+  }
+  d.shapeOffsets = std::move(offsets);
+  d.invalidate();
 }
 
 void Simulation::rawFrame(int frame, PointsF& out) {
