@@ -56,13 +56,15 @@ def test_makehuman_knee_keeps_volume_and_no_muscle_spikes(makehuman):
 
 
 def test_makehuman_shoulder_and_hip_stay_within_dqs_of_the_skeleton(makehuman):
-    """Where the muscles barely act (the shoulder and hip), the rig stays close to the skeleton's own mode. Not
-    met (issue 14 item 3): the shoulder at -27.6 % is 2.8 points past DQS's -24.8 % with 16 crossings (LBS 6,
-    DQS 0), from the clavicular pectoral's muscle joints; the hip keeps DQS's +24.1 % (half of LBS is 12 %)."""
+    """At the shoulder and hip the rig stays close to the skeleton's own mode. The clavicular pectoral (clavicle ->
+    humerus) no longer drags the skin the skeleton shares between the trunk and the arm (borderRelief): the
+    shoulder band went from -27.6 % with 16 crossings to -25.6 % with 3 (LBS -62.7 % / 6, DQS -24.8 % / 0). Not met
+    (issue 14 item 3): the shoulder is still 0.8 points past DQS; the hip keeps DQS's +24.1 % (half of LBS: 12 %)."""
     shoulder, hip = makehuman["shoulder abduction"], makehuman["hip flexion"]
     assert shoulder["lbs"] < -0.4
     assert abs(shoulder["myoskin_pv"]) <= 0.5 * abs(shoulder["lbs"])
-    assert abs(shoulder["myoskin_pv"] - shoulder["dqs"]) < 0.04
+    assert abs(shoulder["myoskin_pv"]) <= abs(shoulder["dqs"]) + 0.015
+    assert shoulder["crossings_myoskin_pv"] <= shoulder["crossings_lbs"]
     assert abs(shoulder["myoskin"] - shoulder["lbs"]) < 0.02
     assert abs(hip["myoskin_pv"] - hip["dqs"]) < 0.01
 
