@@ -1,6 +1,7 @@
 """Skin quality at bent joints, LBS vs DQS vs Myoskin (and Myoskin + Preserve Volume) vs the anchored skin through the
 core (benchmarks/skin_quality.py defines the measures). Prints a table per character and a second one for the
-anchored skin (band, bulge, crossings, ms per frame against Equation 3 in the same run); never asserts. Characters:
+anchored skin (band, bulge, crossings, ms per frame against Equation 3 in the same run); never asserts. Joints
+(skin_quality.py): elbow, knee, shoulder, hip and ankle plantar flexion (the calf's bulge on the lower leg). Characters:
 makehuman_muscular_male, a generated biped (makeSyntheticBody, known muscles), Quaternius' woman soldier (four
 meshes, x100) and Quaternius' horse (x100). Usage (./myoskin.sh bench
 runs it):

@@ -18,12 +18,15 @@ import numpy as np
 # Joints to bend, per rig naming: (label, moving bone, hinge bone, upper-segment bones, direction, degrees). The
 # moving bone and its subtree turn about its head by `degrees`, about the axis perpendicular to the hinge bone and
 # to `direction`: "forward"/"backward" along the character's facing (bent_pose's `facing`, +Z for MakeHuman), or
-# "outward" (about the facing axis, swinging away from the body's mirror plane X = 0).
+# "outward" (about the facing axis, swinging away from the body's mirror plane X = 0). Plantar flexion turns the foot
+# "backward" about the same axis as the knee's flexion: the toes go down and the calf shortens (its bulge is
+# measured on the lower leg's skin, the "upper segment" of the ankle).
 MAKEHUMAN_JOINTS = [
     ("elbow flexion", "lowerarm01.L", "upperarm02.L", ("upperarm01.L", "upperarm02.L"), "forward", 120.0),
     ("knee flexion", "lowerleg01.L", "upperleg02.L", ("upperleg01.L", "upperleg02.L"), "backward", 120.0),
     ("shoulder abduction", "upperarm01.L", "upperarm01.L", ("shoulder01.L", "clavicle.L"), "outward", 120.0),
     ("hip flexion", "upperleg01.L", "upperleg02.L", ("pelvis.L",), "forward", 90.0),
+    ("ankle plantar flexion", "foot.L", "lowerleg02.L", ("lowerleg01.L", "lowerleg02.L"), "backward", 45.0),
 ]
 # The generator's bodies (makeSyntheticBody: Z up, facing -Y, A-pose) and Quaternius' rigs (Y up, facing +Z, T-pose).
 SYNTHETIC_BODY_JOINTS = [
@@ -31,6 +34,7 @@ SYNTHETIC_BODY_JOINTS = [
     ("knee flexion", "shin.L", "thigh.L", ("thigh.L",), "backward", 120.0),
     ("shoulder abduction", "upper_arm.L", "upper_arm.L", ("shoulder.L",), "outward", 90.0),
     ("hip flexion", "thigh.L", "thigh.L", ("hips",), "forward", 90.0),
+    ("ankle plantar flexion", "foot.L", "shin.L", ("shin.L",), "backward", 45.0),
 ]
 # Quaternius' horse (Y up, facing +Z, x100 in its file): the front knee and the hind hock bend backward, the hind
 # leg's upper segment swings forward.
@@ -44,6 +48,7 @@ QUATERNIUS_JOINTS = [
     ("knee flexion", "LowerLeg.L", "UpperLeg.L", ("UpperLeg.L",), "backward", 120.0),
     ("shoulder abduction", "UpperArm.L", "UpperArm.L", ("Shoulder.L",), "outward", 60.0),
     ("hip flexion", "UpperLeg.L", "UpperLeg.L", ("Hips",), "forward", 90.0),
+    ("ankle plantar flexion", "Foot.L", "LowerLeg.L", ("LowerLeg.L",), "backward", 45.0),
 ]
 
 

@@ -224,7 +224,7 @@ void bindSkinning(py::module_& m) {
       "hybrid_weights",
       [](const Character& c, const PyMuscleRig& rig, double dominance, const std::map<std::string, double>& perMuscle,
          int maxInfluences, double fullDistance, double falloffDistance, int smoothingIterations, double endTaper,
-         double minWeight, double creaseRelief) {
+         double minWeight, double creaseRelief, double borderRelief) {
         if (!c.hasWeights()) throw InputError("hybrid_weights: character '" + c.name + "' has no skin weights");
         if (rig.skeleton().numBones() != c.skeleton.numBones())
           throw InputError("hybrid_weights: the rig has " + std::to_string(rig.skeleton().numBones()) +
@@ -239,6 +239,7 @@ void bindSkinning(py::module_& m) {
         o.endTaper = endTaper;
         o.minWeight = minWeight;
         o.creaseRelief = creaseRelief;
+        o.borderRelief = borderRelief;
         SkinWeights w;
         {
           py::gil_scoped_release release;
@@ -255,11 +256,14 @@ void bindSkinning(py::module_& m) {
       py::arg("end_taper") = HybridWeightOptions{}.endTaper,
       py::arg("min_weight") = HybridWeightOptions{}.minWeight,
       py::arg("crease_relief") = HybridWeightOptions{}.creaseRelief,
+      py::arg("border_relief") = HybridWeightOptions{}.borderRelief,
       "Combined weights (joints #V by K over [0, #B + #J), weights #V by K; rows sum to 1) from the "
       "character's skeleton weights and the rig's muscles: distance to each muscle's surface and side, "
       "smoothed, split between neighbouring muscle joints; muscle weights below min_weight go back to the "
       "bones (continuous ramp); crease_relief: in the skeleton's joint crease (skin blended between bones) the "
-      "muscles take this much less (0 = off); dominance 0 gives the skeleton weights.");
+      "muscles take this much less (0 = off); border_relief: a muscle acts fully on skin whose skeleton weight lies "
+      "on the muscle's segments alone, and not at all where a share of border_relief or more lies on other bones "
+      "(0 = off); dominance 0 gives the skeleton weights.");
 
   // ==========================================================================
   // Quality measures

@@ -10,6 +10,7 @@
 #include "test_support.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
+#include "myoskin/sections.h"
 #include "myoskin/skinning.h"
 #include "myoskin/synthetic_character.h"
 
@@ -464,4 +465,67 @@ TEST(HybridWeights, MusclesTakeWeightOnlyFromTheBonesTheySpan) {
   }
   std::printf("muscle vertices with weight on a bone no muscle there spans: %d, weight kept exactly: %d\n", checked, kept);
   EXPECT_GT(checked, 100) << "the arm's muscles reach skin the skeleton blends with other bones";
+}
+
+TEST(HybridWeights, BorderReliefLeavesSkinSharedWithOtherSegmentsToTheSkeleton) {
+  // Every muscle on its region's bone (the biceps across the elbow), unsmoothed: with borderRelief 0.1 no muscle
+  // weighs on skin that has 10 % or more of its skeleton weight outside the muscle's bones; skin entirely on
+  // the bones of the muscles that weigh on it keeps the weights it has without the relief.
+  const ArmRig& a = armRig();
+  const Character& c = a.character;
+  const Skeleton& sk = c.skeleton;
+  ASSERT_GE(a.biceps, 0);
+  std::vector<Muscle> muscles = a.muscles;
+  for (size_t m = 0; m < muscles.size(); ++m) {
+    if (static_cast<int>(m) == a.biceps) continue;
+    const std::string bone = muscles[m].region.substr(0, muscles[m].region.find('.'));
+    ASSERT_GE(sk.find(bone), 0) << muscles[m].region;
+    muscles[m].origin.bone = muscles[m].insertion.bone = bone;
+  }
+  const MuscleRig rig(sk, muscles);
+  const int nb = sk.numBones();
+  const std::vector<char> twist = twistSplits(sk, c.weights);
+  ASSERT_EQ(std::count(twist.begin(), twist.end(), 1), 0);  // no twist splits: a segment is one bone
+  // Share of vertex v's skeleton weight outside muscle m's chain (the arm is one chain: bones lo..hi).
+  auto outside = [&](int m, int v) {
+    const int o = sk.find(muscles[m].origin.bone), i = sk.find(muscles[m].insertion.bone);
+    double sum = 0, out = 0;
+    for (int k = 0; k < c.weights.influences(); ++k) {
+      const int b = c.weights.joints(v, k);
+      if (b < 0) continue;
+      sum += c.weights.weights(v, k);
+      if (b < std::min(o, i) || b > std::max(o, i)) out += c.weights.weights(v, k);
+    }
+    return sum > 0 ? out / sum : 0.0;
+  };
+  HybridWeightOptions o;
+  o.smoothingIterations = 0;
+  o.minWeight = 0.0;
+  o.borderRelief = 0.0;
+  const SkinWeights off = computeHybridWeights(c.mesh, c.weights, rig, o);
+  o.borderRelief = 0.1;
+  const SkinWeights on = computeHybridWeights(c.mesh, c.weights, rig, o);
+  int borderOff = 0, borderOn = 0, inside = 0;
+  for (int v = 0; v < c.mesh.numVertices(); ++v) {
+    bool allInside = true;
+    for (int m = 0; m < rig.numMuscles(); ++m) {
+      const bool border = outside(m, v) >= 0.1;
+      if (muscleShare(off, v, nb, rig.jointOffset(m), rig.jointCount(m)) > 0) allInside = allInside && outside(m, v) == 0.0;
+      if (!border) continue;
+      borderOff += muscleShare(off, v, nb, rig.jointOffset(m), rig.jointCount(m)) > 0;
+      borderOn += muscleShare(on, v, nb, rig.jointOffset(m), rig.jointCount(m)) > 0;
+    }
+    if (allInside && muscleShare(off, v, nb) > 0) {
+      ++inside;
+      EXPECT_NEAR(muscleShare(on, v, nb), muscleShare(off, v, nb), 1e-12) << "vertex " << v;
+    }
+  }
+  std::printf("border skin with muscle weight: %d without relief, %d with 0.1; skin on the muscles' bones: %d\n",
+              borderOff, borderOn, inside);
+  EXPECT_GT(borderOff, 20);
+  EXPECT_EQ(borderOn, 0);
+  EXPECT_GT(inside, 100);
+  HybridWeightOptions bad;
+  bad.borderRelief = 1.5;
+  EXPECT_THROW(computeHybridWeights(c.mesh, c.weights, rig, bad), InputError);
 }

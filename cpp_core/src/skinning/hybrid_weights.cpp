@@ -46,6 +46,12 @@ void adjacency(const Mesh& skin, std::vector<int>& start, std::vector<int>& next
     }
 }
 
+// 0 below 0, smoothly (C1) up to 1 at 1.
+double smoothUnit(double x) {
+  const double t = std::clamp(x, 0.0, 1.0);
+  return t * t * (3.0 - 2.0 * t);
+}
+
 // 1 up to d0, smoothly (C1) down to 0 at d1.
 double falloff(double d, double d0, double d1) {
   if (d <= d0) return 1.0;
@@ -90,6 +96,8 @@ void checkOptions(const HybridWeightOptions& o, const MuscleRig& rig) {
   if (!(o.minWeight >= 0.0 && o.minWeight <= 0.25))
     throw InputError("hybrid weights: minWeight must be in [0, 0.25], got " + std::to_string(o.minWeight));
   if (!(o.endTaper >= 0.0 && o.endTaper <= 0.5)) throw InputError("hybrid weights: endTaper must be in [0, 0.5]");
+  if (!(o.borderRelief >= 0.0 && o.borderRelief <= 1.0))
+    throw InputError("hybrid weights: borderRelief must be in [0, 1], got " + std::to_string(o.borderRelief));
   if (!(o.creaseRelief >= 0.0 && o.creaseRelief <= 1.0))
     throw InputError("hybrid weights: creaseRelief must be in [0, 1], got " + std::to_string(o.creaseRelief));
 }
@@ -143,6 +151,7 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
   // has on the far side of a joint the muscle crosses keeps following that bone.
   // crossed[m]: (joint position, the child bone's direction) of each real joint muscle m crosses.
   std::vector<std::vector<std::pair<Vec3, Vec3>>> crossed(rig.numMuscles());
+  std::vector<std::vector<float>> spanShare;  // #M by #V, empty when borderRelief is 0
   {
     const std::vector<char> twist = twistSplits(skeleton, skeletonWeights);
     std::vector<int> segment(nb);
@@ -150,6 +159,29 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
       int r = b;
       while (twist[r] && skeleton.bones[r].parent >= 0) r = skeleton.bones[r].parent;
       segment[b] = r;
+    }
+    // Border relief: the share of each vertex's skeleton weight on the segments a muscle spans (the bones from its
+    // origin to its insertion with their twist-split neighbours, before the belly-segment rule below); skin the
+    // skeleton shares with other bones (the border of the trunk and a limb) follows the muscle only as much as it
+    // belongs to the muscle's segments (share^borderRelief).
+    if (options.borderRelief > 0.0) {
+      spanShare.assign(rig.numMuscles(), std::vector<float>(nv, 1.0f));
+      std::vector<char> spannedSegment(nb);
+      for (int m = 0; m < rig.numMuscles(); ++m) {
+        std::fill(spannedSegment.begin(), spannedSegment.end(), 0);
+        for (int b = 0; b < nb; ++b)
+          if (spans[m][b]) spannedSegment[segment[b]] = 1;
+        for (int v = 0; v < nv; ++v) {
+          double sum = 0.0, spanned = 0.0;
+          for (int k = 0; k < skeletonWeights.influences(); ++k) {
+            const int b = skeletonWeights.joints(v, k);
+            if (b < 0) continue;
+            sum += skeletonWeights.weights(v, k);
+            if (spannedSegment[segment[b]]) spanned += skeletonWeights.weights(v, k);
+          }
+          if (sum > kRestWeightThreshold) spanShare[m][v] = static_cast<float>(spanned / sum);
+        }
+      }
     }
     for (int m = 0; m < rig.numMuscles(); ++m) {
       const Muscle& muscle = rig.muscles()[m];
@@ -225,7 +257,8 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
         const Vec3 away = p - surface.vertices.row(q).transpose();
         const double cosine = d > 1e-9 ? away.dot(normals.row(near[i]).transpose()) / d : 1.0;
         const double side = std::clamp(2.0 * cosine, 0.0, 1.0);
-        value[i] = dominance * f * side * relief[near[i]];
+        const double border = spanShare.empty() ? 1.0 : smoothUnit((spanShare[m][near[i]] - 1.0) / options.borderRelief + 1.0);
+        value[i] = dominance * f * side * relief[near[i]] * border;
       }
     });
     std::vector<double> smoothed(value.size());
