@@ -184,12 +184,12 @@ struct ExtractionOptions {
   // spindleSections consecutive planes, and its bumps are steep: protrusion / skin arc length at least
   // spindleSteepness on average (a rounded cap, not a broad low swell). Measured on the generated tune seeds 1-3
   // (protrusion floor 3.5 mm): of the true bellies missed by the floors (brachialis, tibialis anterior, forearm flexors
-  // and extensors) 13 of 19 candidate chains are such spindles (ends 0.37-0.74, steepness 0.053-0.10), and nearly every
-  // true chain already kept is one too; MakeHuman neutral's dropped chains are not (multi-peaked, starting at their
-  // peak at the first plane, ends 0.84-1.0). Over plane spacings x 0.9-1.1 the neutral spindles that do pass ends 0.75
+  // and extensors) 12 of 17 candidate chains are such spindles (higher end 0.47-0.74 of the peak, steepness
+  // 0.053-0.10; the rest start near their peak at the bone's first plane); MakeHuman's dropped chains are not
+  // (multi-peaked, or peaking at an end: 0.84-1.0). Over plane spacings x 0.9-1.1 the neutral spindles that pass ends 0.75
   // (lower legs, peak 1.02-1.08, 1 strong section) have steepness 0.040-0.044, and a muscular male's unpaired lower-leg
   // chain at x 1.05 0.033; neutral's forearm pair at x 1.075 (0.072) passes. Ends 0.85 or 1 add neutral chains
-  // (x 0.9: 24/4 and 20/10 at x 0.95 with 1); sections 5 lose tune recall 0.852 -> 0.815. 0 = off
+  // (x 0.95: neutral 8 and 10 against muscular 20); 5 sections lose tune recall 0.852 -> 0.815. 0 = off
   double spindleEnds = 0.75;
   int spindleSections = 4;
   double spindleSteepness = 0.05;
