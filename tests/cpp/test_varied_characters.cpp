@@ -5,6 +5,7 @@
 // ("SHORT OF TARGET") and asserts what holds.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <set>
@@ -124,6 +125,18 @@ TEST(VariedCharacters, HeldOutRecallAndPrecision) {
       const ExtractionAccuracy acc = measureExtraction(r.muscles, b.muscles);
       recall += acc.recall, precision += acc.precision;
       spindles += r.report.spindles;
+      // The chain records say which chains the spindle rule kept, and they are closed spindles by its options.
+      int rescued = 0;
+      for (const ChainRecord& c : r.report.chainRecords) {
+        if (c.verdict != "spindle") continue;
+        ++rescued;
+        EXPECT_TRUE(c.spindle);
+        EXPECT_GE(c.significance.size(), 4u);
+        EXPECT_GE(c.steepness, ExtractionOptions{}.spindleSteepness);
+        const double top = *std::max_element(c.significance.begin(), c.significance.end());
+        EXPECT_LT(std::max(c.significance.front(), c.significance.back()), ExtractionOptions{}.spindleEnds * top);
+      }
+      EXPECT_EQ(rescued, r.report.spindles) << bodyKindName(kind) << " seed " << seed;
       std::printf("held-out %s seed %u: %d true, %d found, %d matched: recall %.3f precision %.3f\n", bodyKindName(kind),
                   seed, acc.trueMuscles, acc.foundMuscles, acc.matched, acc.recall, acc.precision);
       EXPECT_GT(acc.matched, 0) << bodyKindName(kind) << " seed " << seed;

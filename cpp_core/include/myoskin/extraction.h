@@ -182,14 +182,15 @@ struct ExtractionOptions {
   // significance along consecutive planes rises to a significant peak and falls from it without a dip, both end links
   // stay below spindleEnds of the peak (the belly tapers on both sides within the sectioned length), it covers at least
   // spindleSections consecutive planes, and its bumps are steep: protrusion / skin arc length at least
-  // spindleSteepness on average (a rounded cap, not a broad low swell). Measured on the generated tune seeds 1-3
-  // (protrusion floor 3.5 mm): of the true bellies missed by the floors (brachialis, tibialis anterior, forearm flexors
-  // and extensors) 12 of 17 candidate chains are such spindles (higher end 0.47-0.74 of the peak, steepness
-  // 0.053-0.10; the rest start near their peak at the bone's first plane); MakeHuman's dropped chains are not
-  // (multi-peaked, or peaking at an end: 0.84-1.0). Over plane spacings x 0.9-1.1 the neutral spindles that pass ends 0.75
-  // (lower legs, peak 1.02-1.08, 1 strong section) have steepness 0.040-0.044, and a muscular male's unpaired lower-leg
-  // chain at x 1.05 0.033; neutral's forearm pair at x 1.075 (0.072) passes. Ends 0.85 or 1 add neutral chains
-  // (x 0.95: neutral 8 and 10 against muscular 20); 5 sections lose tune recall 0.852 -> 0.815. 0 = off
+  // spindleSteepness on average (a rounded cap, not a broad low swell). Measured (bench_spindle_cue) on the generated
+  // tune seeds 1-3 at the 3.5 mm floor: of the 17 chains of true bellies the floors drop (brachialis, tibialis
+  // anterior, forearm flexors and extensors; 4+ bumps, a significant peak) 11 are such spindles (higher end 0.47-0.74
+  // of the peak, steepness 0.060-0.101; the rest end near their peak, 0.75-0.99, at the bone's first plane, or are
+  // broad, 0.049), no false chain is dropped there, and none of MakeHuman's 14 dropped chains is a spindle (several
+  // peaks, or a peak at an end). Over plane spacings x 0.9-1.1 the neutral lower-leg chains with the profile (peak
+  // 1.03-1.06) have steepness 0.036-0.038, the muscular body's unpaired lower-leg chain at x 1.05 0.037; neutral's
+  // forearm pair at x 1.075 (0.059) is kept. Ends 0.85 or 1 add neutral chains (x 0.95: neutral 8 and 10 against
+  // muscular 20); 5 sections lose tune recall 0.852 -> 0.815. 0 = off
   double spindleEnds = 0.75;
   int spindleSections = 4;
   double spindleSteepness = 0.05;
@@ -216,6 +217,18 @@ struct ExcludedComponent {
   int firstVertex = -1;               // lowest vertex index in it (to find it again)
 };
 
+// One linked chain of bumps and what the floors made of it (ExtractionReport::chainRecords): the cue of shape per chain.
+struct ChainRecord {
+  std::string family;                 // its planes' family ("limb", "shoulder", "abdomen", "neck")
+  std::string bone;                   // the bone of most of its planes
+  std::vector<Vec3> centres;          // its bumps' ellipse centres in plane order (character units)
+  std::vector<double> significance;   // per bump, relative to the protrusion threshold (>= 1 significant)
+  double steepness = 0.0;             // its bumps' mean protrusion / skin arc length (spindleSteepness)
+  bool spindle = false;               // a closed spindle (spindleEnds; limb families only)
+  std::string verdict;                // "kept" (before family dominance), "spindle" (kept below the floors as a closed
+                                      // spindle), "forced", or dropped: "short", "flat", "confidence"
+};
+
 struct ExtractionReport {
   double limbRadius = 0.0;            // the body's limb radius in the character's units (bodyLimbRadius)
   double scale = 1.0;                 // factor the character was scaled by for the analysis (a power of ten: its units)
@@ -236,6 +249,7 @@ struct ExtractionReport {
                                                                        // too little evidence (minEvidence)
   int droppedFlat = 0;                // muscles whose bumps stand out less than minRelative on average
   int spindles = 0;                   // chains below those floors kept as closed spindles (spindleEnds)
+  std::vector<ChainRecord> chainRecords;  // every linked chain with two or more bumps, in linking order
   int droppedOverlap = 0;             // muscles of a dominated family where families overlap
   int forced = 0;                     // muscles from forced regions
   std::vector<SkippedSection> skipped;

@@ -104,18 +104,27 @@ bool continuousChain(const MuscleChain& c, const std::vector<SectionBumps>& sect
 // `minLinks` consecutive planes, and its bumps are steep: their protrusion / skin arc length is `steepness` on average.
 // A belly swells and tapers within the sectioned length as a rounded cap; a body contour cut off by the plane range (a
 // fold running into a joint), soft relief that comes and goes along the limb, or a broad low swell does not.
+// The chain's bumps' mean steepness: protrusion / skin arc length (relative / width of each bump).
+double chainSteepness(const MuscleChain& c, const std::vector<SectionBumps>& sections) {
+  double steep = 0.0;
+  int count = 0;
+  for (const ChainLink& l : c.links) {
+    if (l.bump < 0) continue;
+    const SectionBumps& s = sections[l.section];
+    const bool measured = l.bump < static_cast<int>(s.width.size()) && l.bump < static_cast<int>(s.relative.size());
+    steep += measured && s.width[l.bump] > 0 ? s.relative[l.bump] / s.width[l.bump] : 0.0;
+    ++count;
+  }
+  return count > 0 ? steep / count : 0.0;
+}
+
 bool spindleChain(const MuscleChain& c, const std::vector<SectionBumps>& sections, double ends, int minLinks,
                   double steepness) {
   std::vector<std::pair<int, double>> profile;  // (plane order, significance) of the real links
-  double steep = 0.0;
   for (const ChainLink& l : c.links)
-    if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size())) {
+    if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size()))
       profile.emplace_back(sections[l.section].plane.order, sections[l.section].significance[l.bump]);
-      const SectionBumps& s = sections[l.section];
-      const bool measured = l.bump < static_cast<int>(s.width.size()) && l.bump < static_cast<int>(s.relative.size());
-      steep += measured && s.width[l.bump] > 0 ? s.relative[l.bump] / s.width[l.bump] : 0.0;
-    }
-  if (profile.empty() || steep < steepness * profile.size()) return false;
+  if (profile.empty() || chainSteepness(c, sections) < steepness) return false;
   std::sort(profile.begin(), profile.end());
   const int n = static_cast<int>(profile.size());
   if (n < std::max(minLinks, 3)) return false;
@@ -255,6 +264,8 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       containMuscleSurface(m.surface, std::max(3, options.surface.ringVertices), skin, options.surface.skinMargin);
   }
   ExtractionReport& rep = result.report;
+  for (ChainRecord& r : rep.chainRecords)
+    for (Vec3& p : r.centres) p = fromBody(p);
   rep.limbRadius = limbRadius;
   rep.scale = factor;
   rep.excluded = std::move(excluded);
@@ -483,7 +494,30 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
   }
   std::vector<MuscleChain> kept;
   for (MuscleChain& c : chains) {
+    // The chain's record: its bumps along it, its shape, and (set below) the verdict.
+    ChainRecord* record = nullptr;
+    if (c.realSections >= 2) {
+      ChainRecord r;
+      r.family = c.family;
+      r.bone = c.bone >= 0 ? sk.bones[c.bone].name : "";
+      for (const ChainLink& l : c.links)
+        if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size())) {
+          r.centres.push_back(planePoint(sections[l.section].plane, l.ellipse.center));
+          r.significance.push_back(sections[l.section].significance[l.bump]);
+        }
+      r.steepness = chainSteepness(c, sections);
+      r.spindle = !detail::trunkFamily(c.family) &&
+                  spindleChain(c, sections, options.spindleEnds, options.spindleSections, options.spindleSteepness);
+      r.verdict = "kept";
+      rep.chainRecords.push_back(std::move(r));
+      record = &rep.chainRecords.back();
+    }
+    auto drop = [&](int& counter, const char* verdict) {
+      ++counter;
+      if (record) record->verdict = verdict;
+    };
     if (c.forced) {
+      if (record) record->verdict = "forced";
       kept.push_back(std::move(c));
       continue;
     }
@@ -508,21 +542,21 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
           sum += sections[l.section].relative[l.bump], ++count;
       flat = count == 0 || sum < floor * count;
     }
-    const bool spindle = (shortChain || flat) && !trunk && options.spindleEnds > 0 &&
-                         spindleChain(c, sections, options.spindleEnds, options.spindleSections, options.spindleSteepness);
+    const bool spindle = (shortChain || flat) && record && record->spindle;
     if (shortChain && !spindle) {
-      ++rep.droppedShort;
+      drop(rep.droppedShort, "short");
       continue;
     }
     if (flat && !spindle) {
-      ++rep.droppedFlat;
+      drop(rep.droppedFlat, "flat");
       continue;
     }
     if (c.confidence < options.minConfidence) {
-      ++rep.droppedConfidence;
+      drop(rep.droppedConfidence, "confidence");
       continue;
     }
     rep.spindles += spindle;
+    if (spindle) record->verdict = "spindle";
     kept.push_back(std::move(c));
   }
   rep.timings.push_back({"link", secondsSince(t0)});
