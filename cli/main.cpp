@@ -78,7 +78,8 @@ void usage(std::ostream& out) {
          "  generate arm -o DIR [--seed N] [--muscle-scale S]  write the procedural test arm\n"
          "                                                      (arm.obj, arm.skeleton.json, arm.truth.json)\n"
          "  extract CHARACTER -o muscles.json [--spacing M] [--min-confidence C] [--min-sections N]\n"
-         "          [--max-per-region N] [--min-evidence E] [--no-surfaces] [--mesh NAME] [--roles ROLES.json]\n"
+         "          [--max-per-region N] [--min-evidence E] [--spindle-ends F] [--no-surfaces] [--mesh NAME]\n"
+         "          [--roles ROLES.json]\n"
          "          extract muscles from the skin (the whole character: every mesh its skin deforms, or --mesh)\n"
          "  deform CHARACTER [--muscles M.json] --pose P.json -o out.obj|out.pc2 [--dominance D] [--threads N]\n"
          "          [--preserve-volume [--dq-scale pivot|blended]] [--method eq3|anchored] [--relax-iterations N]\n"
@@ -238,6 +239,8 @@ int cmdExtract(const Args& args) {
   options.maxPerRegion = static_cast<int>(numberOption(args, "--max-per-region", 0));
   options.minEvidence = numberOption(args, "--min-evidence", options.minEvidence);
   if (!(options.minEvidence >= 0)) throw InputError("--min-evidence must be >= 0");
+  options.spindleEnds = numberOption(args, "--spindle-ends", options.spindleEnds);
+  if (!(options.spindleEnds >= 0 && options.spindleEnds <= 1)) throw InputError("--spindle-ends must be in [0, 1]");
   options.buildSurfaces = std::find(args.flags.begin(), args.flags.end(), "--no-surfaces") == args.flags.end();
   const Character c = loadArgCharacter(args, "extract");
   const ExtractionResult r = extractMuscles(c, options);
@@ -515,7 +518,7 @@ int main(int argc, char** argv) {
     if (command == "extract")
       return cmdExtract(parse(argc, argv, 2,
                               {"--output", "--skeleton", "--spacing", "--min-confidence", "--min-sections", "--max-per-region",
-                               "--min-evidence", "--mesh", "--roles"}));
+                               "--min-evidence", "--spindle-ends", "--mesh", "--roles"}));
     if (command == "deform")
       return cmdDeform(
           parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh", "--dq-scale",

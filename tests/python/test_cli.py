@@ -47,13 +47,16 @@ def test_extract_min_evidence(tmp_path):
     counts = []
     for evidence in ("0", "6.6", "1000"):
         out = tmp_path / ("m%s.json" % evidence)
-        r = run_cli("extract", arm, "-o", str(out), "--min-evidence", evidence, "--no-surfaces")
+        spindles = ["--spindle-ends", "0"] if evidence == "1000" else []  # closed spindles are kept below the floor
+        r = run_cli("extract", arm, "-o", str(out), "--min-evidence", evidence, "--no-surfaces", *spindles)
         assert r.returncode == 0, r.stderr
         data = json.load(open(out))
         counts.append(len(data["muscles"] if isinstance(data, dict) else data))
     assert counts[0] >= counts[1] == 6 and counts[2] == 0, counts  # seed 2: its six muscles at the default
     r = run_cli("extract", arm, "-o", str(tmp_path / "x.json"), "--min-evidence", "-1")
     assert r.returncode != 0 and "--min-evidence" in r.stderr
+    r = run_cli("extract", arm, "-o", str(tmp_path / "x.json"), "--spindle-ends", "2")
+    assert r.returncode != 0 and "--spindle-ends" in r.stderr
 
 
 def _write_obj(path, vertices, faces):
@@ -174,6 +177,6 @@ def test_extract_says_why_and_fails_when_nothing_could_be_analysed(tmp_path):
     assert "nothing could be analysed" in r.stderr and "no limb chain recognised" in r.stderr, r.stderr
     assert not out.exists()
     # Sections analysed but nothing stands out: exit 0, and the reason printed.
-    r = run_cli("extract", arm, "-o", str(out), "--min-evidence", "1000", "--no-surfaces")
+    r = run_cli("extract", arm, "-o", str(out), "--min-evidence", "1000", "--spindle-ends", "0", "--no-surfaces")
     assert r.returncode == 0, r.stderr
     assert "no muscles: " in r.stdout and "none kept" in r.stdout, r.stdout

@@ -53,10 +53,13 @@ def test_user_control_options(core, arm):
     assert all(np.asarray(m.section_centers)[:, 0].min() > 0.45 for m in forearm)
     none, _ = core.extract_muscles(character, min_confidence=1.0)
     assert none == []
-    flat, report = core.extract_muscles(character, min_relative=0.5)
+    flat, report = core.extract_muscles(character, min_relative=0.5, spindle_ends=0.0)  # no spindle kept below it
     assert flat == [] and report["dropped_flat"] >= len(everything)
-    # The evidence floor only removes muscles (no muscle of this arm has 100 sections' worth of significance).
-    assert core.extract_muscles(character, min_evidence=100.0)[0] == []
+    # The evidence floor only removes muscles (no muscle of this arm has 100 sections' worth of significance), but
+    # closed spindles are kept below it (spindle_ends): the arm's bellies are such spindles.
+    assert core.extract_muscles(character, min_evidence=100.0, spindle_ends=0.0)[0] == []
+    spindles, report = core.extract_muscles(character, min_evidence=100.0)
+    assert 0 < len(spindles) <= len(everything) and report["spindles"] >= len(spindles)
     assert len(core.extract_muscles(character, min_evidence=0.0)[0]) >= len(everything)
     # Hysteresis (the default) measures at least as well as none on this arm (seed 2: precision 1.0 vs 0.83).
     strict, _ = core.extract_muscles(character, weak_fraction=1.0)

@@ -30,6 +30,7 @@ struct SectionWork {
   std::vector<Ellipse2> ellipses;
   std::vector<double> significance;
   std::vector<double> relative;
+  std::vector<double> width;
   std::vector<int> forcedRegion;  // per ellipse: forced region index or -1
   bool split = false;             // triangulated as two halves along the mirror axis
 };
@@ -39,6 +40,14 @@ bool arcContains(const Bump& b, int i, int n) {
   const int len = ((b.last - b.first) % n + n) % n;
   const int off = ((i - b.first) % n + n) % n;
   return off <= len;
+}
+
+// Length of a bump's skin arc (polygon first -> last, counter-clockwise, wrapping).
+double bumpArcLength(const Points2& polygon, const Bump& b) {
+  const int n = static_cast<int>(polygon.rows());
+  double arc = 0.0;
+  for (int k = b.first; k != b.last; k = (k + 1) % n) arc += (polygon.row((k + 1) % n) - polygon.row(k)).norm();
+  return arc;
 }
 
 bool arcsOverlap(const Bump& x, const Bump& y, int n) {
@@ -61,7 +70,7 @@ std::string sideName(const Bone& bone, const Vec3& p) {
 // its Delaunay ties one way, which moved one side's ellipses by up to a millimetre).
 void mirrorSectionBumps(SectionWork& w) {
   SectionWork out = w;
-  out.ellipses.clear(), out.significance.clear(), out.relative.clear(), out.forcedRegion.clear();
+  out.ellipses.clear(), out.significance.clear(), out.relative.clear(), out.width.clear(), out.forcedRegion.clear();
   for (int pass = 0; pass < 2; ++pass)
     for (size_t b = 0; b < w.ellipses.size(); ++b) {
       Ellipse2 e = w.ellipses[b];
@@ -70,6 +79,7 @@ void mirrorSectionBumps(SectionWork& w) {
       out.ellipses.push_back(e);
       out.significance.push_back(w.significance[b]);
       out.relative.push_back(w.relative[b]);
+      out.width.push_back(w.width[b]);
       out.forcedRegion.push_back(w.forcedRegion[b]);
     }
   w = std::move(out);
@@ -87,6 +97,50 @@ bool continuousChain(const MuscleChain& c, const std::vector<SectionBumps>& sect
   for (size_t i = 1; i < orders.size(); ++i)
     if (orders[i] != orders[i - 1] + 1) return false;
   return !orders.empty();
+}
+
+// True when the chain is a closed spindle (ExtractionOptions::spindleEnds): its significance along its planes rises
+// to a peak and falls from it (each real link no lower than the one before it up to the peak, no higher after it, in
+// plane order), the peak is significant (>= 1), both end links stay below `ends` of the peak, the links cover at least
+// `minLinks` consecutive planes, and its bumps are steep: their protrusion / skin arc length is `steepness` on average.
+// A belly swells and tapers within the sectioned length as a rounded cap; a body contour cut off by the plane range (a
+// fold running into a joint), soft relief that comes and goes along the limb, or a broad low swell does not.
+// The chain's bumps' mean steepness: protrusion / skin arc length (relative / width of each bump).
+double chainSteepness(const MuscleChain& c, const std::vector<SectionBumps>& sections) {
+  double steep = 0.0;
+  int count = 0;
+  for (const ChainLink& l : c.links) {
+    if (l.bump < 0) continue;
+    const SectionBumps& s = sections[l.section];
+    const bool measured = l.bump < static_cast<int>(s.width.size()) && l.bump < static_cast<int>(s.relative.size());
+    steep += measured && s.width[l.bump] > 0 ? s.relative[l.bump] / s.width[l.bump] : 0.0;
+    ++count;
+  }
+  return count > 0 ? steep / count : 0.0;
+}
+
+bool spindleChain(const MuscleChain& c, const std::vector<SectionBumps>& sections, double ends, int minLinks,
+                  double steepness) {
+  std::vector<std::pair<int, double>> profile;  // (plane order, significance) of the real links
+  for (const ChainLink& l : c.links)
+    if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size()))
+      profile.emplace_back(sections[l.section].plane.order, sections[l.section].significance[l.bump]);
+  if (profile.empty() || chainSteepness(c, sections) < steepness) return false;
+  std::sort(profile.begin(), profile.end());
+  const int n = static_cast<int>(profile.size());
+  if (n < std::max(minLinks, 3)) return false;
+  for (int k = 1; k < n; ++k)
+    if (profile[k].first != profile[k - 1].first + 1) return false;
+  int peak = 0;
+  for (int k = 1; k < n; ++k)
+    if (profile[k].second > profile[peak].second) peak = k;
+  const double top = profile[peak].second;
+  if (!(top >= 1.0) || profile.front().second >= ends * top || profile.back().second >= ends * top) return false;
+  for (int k = 1; k <= peak; ++k)
+    if (profile[k].second < profile[k - 1].second) return false;
+  for (int k = peak + 1; k < n; ++k)
+    if (profile[k].second > profile[k - 1].second) return false;
+  return true;
 }
 
 // Why nothing was found, from the report of a run that returned no muscle.
@@ -212,6 +266,8 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       containMuscleSurface(m.surface, std::max(3, options.surface.ringVertices), skin, options.surface.skinMargin);
   }
   ExtractionReport& rep = result.report;
+  for (ChainRecord& r : rep.chainRecords)
+    for (Vec3& p : r.centres) p = fromBody(p);
   rep.limbRadius = limbRadius;
   rep.scale = factor;
   rep.excluded = std::move(excluded);
@@ -226,6 +282,10 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
   const int nv = character.mesh.numVertices();
   if (options.trunkHarmonics < 0 || options.trunkHarmonics > 16)
     throw InputError("trunkHarmonics must be in [0, 16], got " + std::to_string(options.trunkHarmonics));
+  if (!(options.spindleEnds >= 0.0 && options.spindleEnds <= 1.0) || options.spindleSections < 0 ||
+      !(options.spindleSteepness >= 0.0 && std::isfinite(options.spindleSteepness)))
+    throw InputError("spindle options: spindleEnds must be in [0, 1], spindleSections >= 0 and spindleSteepness finite "
+                     "and >= 0");
   if (options.bumps.baseHarmonics < 0 || options.bumps.baseHarmonics > 16)
     throw InputError("bumps.baseHarmonics must be in [0, 16], got " + std::to_string(options.bumps.baseHarmonics));
   ExtractionResult result;
@@ -374,6 +434,7 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
         w.ellipses.push_back(e);
         w.significance.push_back(bumps[b].significance);
         w.relative.push_back(meanRadius > 0 ? bumps[b].protrusion / meanRadius : 0.0);
+        w.width.push_back(meanRadius > 0 ? bumpArcLength(prof.polygon, bumps[b]) / meanRadius : 0.0);
         w.forcedRegion.push_back(forced[b]);
       }
       if (prof.plane.mirrorAxis && prof.symmetric && w.split && options.vertexMask.empty() && forcedVerts.empty())
@@ -399,6 +460,7 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
     s.ellipses = work[i].ellipses;
     s.significance = work[i].significance;
     s.relative = work[i].relative;
+    s.width = work[i].width;
     for (int f : work[i].forcedRegion) s.forced.push_back(f >= 0);
     for (double sg : s.significance) rep.bumps += sg >= 1.0;
     forcedOf.push_back(work[i].forcedRegion);
@@ -434,7 +496,30 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
   }
   std::vector<MuscleChain> kept;
   for (MuscleChain& c : chains) {
+    // The chain's record: its bumps along it, its shape, and (set below) the verdict.
+    ChainRecord* record = nullptr;
+    if (c.realSections >= 2) {
+      ChainRecord r;
+      r.family = c.family;
+      r.bone = c.bone >= 0 ? sk.bones[c.bone].name : "";
+      for (const ChainLink& l : c.links)
+        if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size())) {
+          r.centres.push_back(planePoint(sections[l.section].plane, l.ellipse.center));
+          r.significance.push_back(sections[l.section].significance[l.bump]);
+        }
+      r.steepness = chainSteepness(c, sections);
+      r.spindle = !detail::trunkFamily(c.family) &&
+                  spindleChain(c, sections, options.spindleEnds, options.spindleSections, options.spindleSteepness);
+      r.verdict = "kept";
+      rep.chainRecords.push_back(std::move(r));
+      record = &rep.chainRecords.back();
+    }
+    auto drop = [&](int& counter, const char* verdict) {
+      ++counter;
+      if (record) record->verdict = verdict;
+    };
     if (c.forced) {
+      if (record) record->verdict = "forced";
       kept.push_back(std::move(c));
       continue;
     }
@@ -442,31 +527,38 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
     for (const ChainLink& l : c.links)
       if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size()))
         evidence += sections[l.section].significance[l.bump];
-    if (c.strongSections < options.link.minSections || evidence * evidenceScale < options.minEvidence) {
-      ++rep.droppedShort;
-      continue;
-    }
+    // The floors on length and height (a chain that misses one is dropped unless it is a closed spindle).
     const bool trunk = detail::trunkFamily(c.family);
+    bool shortChain = c.strongSections < options.link.minSections || evidence * evidenceScale < options.minEvidence;
+    bool flat = false;
     double floor = trunk ? options.minRelativeTrunk : options.minRelative;
     if (!trunk && options.continuousFraction > 0 && evidence * evidenceScale >= options.continuousEvidence &&
         continuousChain(c, sections, options.magnitudeFraction))
       floor *= std::min(options.continuousFraction, 1.0);
-    if (floor > 0) {  // the bumps' mean height relative to their sections' size (the faint tail links left out)
+    if (!shortChain && floor > 0) {  // the bumps' mean height relative to their sections' size (faint tails left out)
       double sum = 0.0;
       int count = 0;
       for (const ChainLink& l : c.links)
         if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].relative.size()) &&
             sections[l.section].significance[l.bump] >= options.magnitudeFraction)
           sum += sections[l.section].relative[l.bump], ++count;
-      if (count == 0 || sum < floor * count) {
-        ++rep.droppedFlat;
-        continue;
-      }
+      flat = count == 0 || sum < floor * count;
     }
-    if (c.confidence < options.minConfidence) {
-      ++rep.droppedConfidence;
+    const bool spindle = (shortChain || flat) && record && record->spindle;
+    if (shortChain && !spindle) {
+      drop(rep.droppedShort, "short");
       continue;
     }
+    if (flat && !spindle) {
+      drop(rep.droppedFlat, "flat");
+      continue;
+    }
+    if (c.confidence < options.minConfidence) {
+      drop(rep.droppedConfidence, "confidence");
+      continue;
+    }
+    rep.spindles += spindle;
+    if (spindle) record->verdict = "spindle";
     kept.push_back(std::move(c));
   }
   rep.timings.push_back({"link", secondsSince(t0)});
