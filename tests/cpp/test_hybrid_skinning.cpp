@@ -417,6 +417,20 @@ TEST(HybridWeights, BadInput) {
             std::string::npos);
 }
 
+// The arm's muscles, each attached at both ends to the bone of its region (upper_arm or forearm), but the biceps,
+// which keeps its attachments across the elbow.
+static std::vector<Muscle> musclesOnTheirRegionBones(const ArmRig& a) {
+  const Skeleton& sk = a.character.skeleton;
+  std::vector<Muscle> muscles = a.muscles;
+  for (size_t m = 0; m < muscles.size(); ++m) {
+    if (static_cast<int>(m) == a.biceps) continue;
+    const std::string bone = muscles[m].region.substr(0, muscles[m].region.find('.'));
+    EXPECT_GE(sk.find(bone), 0) << muscles[m].region;
+    muscles[m].origin.bone = muscles[m].insertion.bone = bone;
+  }
+  return muscles;
+}
+
 TEST(HybridWeights, MusclesTakeWeightOnlyFromTheBonesTheySpan) {
   // A muscle between upper_arm attachments leaves the clavicle's and forearm's share of the skin's blend
   // near the shoulder and elbow alone; a muscle across the elbow may take both arm bones' shares.
@@ -425,13 +439,7 @@ TEST(HybridWeights, MusclesTakeWeightOnlyFromTheBonesTheySpan) {
   const Skeleton& sk = c.skeleton;
   // Every muscle attached at both ends to the bone of its region (upper_arm or forearm), but the biceps,
   // which keeps its attachments across the elbow.
-  std::vector<Muscle> muscles = a.muscles;
-  for (size_t m = 0; m < muscles.size(); ++m) {
-    if (static_cast<int>(m) == a.biceps) continue;
-    const std::string bone = muscles[m].region.substr(0, muscles[m].region.find('.'));
-    ASSERT_GE(sk.find(bone), 0) << muscles[m].region;
-    muscles[m].origin.bone = muscles[m].insertion.bone = bone;
-  }
+  const std::vector<Muscle> muscles = musclesOnTheirRegionBones(a);
   const MuscleRig rig(sk, muscles);
   const SkinWeights w = computeHybridWeights(c.mesh, c.weights, rig);
   const int nb = sk.numBones();
@@ -475,13 +483,7 @@ TEST(HybridWeights, BorderReliefLeavesSkinSharedWithOtherSegmentsToTheSkeleton) 
   const Character& c = a.character;
   const Skeleton& sk = c.skeleton;
   ASSERT_GE(a.biceps, 0);
-  std::vector<Muscle> muscles = a.muscles;
-  for (size_t m = 0; m < muscles.size(); ++m) {
-    if (static_cast<int>(m) == a.biceps) continue;
-    const std::string bone = muscles[m].region.substr(0, muscles[m].region.find('.'));
-    ASSERT_GE(sk.find(bone), 0) << muscles[m].region;
-    muscles[m].origin.bone = muscles[m].insertion.bone = bone;
-  }
+  const std::vector<Muscle> muscles = musclesOnTheirRegionBones(a);
   const MuscleRig rig(sk, muscles);
   const int nb = sk.numBones();
   const std::vector<char> twist = twistSplits(sk, c.weights);
