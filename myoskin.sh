@@ -20,9 +20,9 @@ PACKAGES=(g++ cmake make libcgal-dev libopenmesh-dev libglm-dev libeigen3-dev py
           libtinygltf-dev nlohmann-json3-dev libtbb-dev libgtest-dev libbenchmark-dev python3-numpy
           python3-pytest python3-venv python3-pip blender xvfb xauth debootstrap)
 # The sanitizer and fuzz tiers (host only: clang with its ASan/UBSan/libFuzzer runtimes; the same names on
-# Debian 12 and 13), labels sanitize and fuzz. MYOSKIN_SANITIZE: 0 (default for now: not yet measured inside the
-# CI budget) neither tier, 1 the quick scope (tests that repeat the same code over more seeds left out, see
-# tests/CMakeLists.txt), full every test.
+# Debian 12 and 13), labels sanitize and fuzz. MYOSKIN_SANITIZE: 0 (default for now: not yet tried from a
+# fresh clone inside the CI budget) neither tier, 1 the quick scope (tests that repeat the same code over more
+# seeds left out, see tests/CMakeLists.txt), full every test.
 SANITIZE_PACKAGES=(clang libclang-rt-dev)
 SANITIZE="${MYOSKIN_SANITIZE:-0}"
 # Debian's cmake: a pip-installed CMake 4 may come first on PATH.
