@@ -32,6 +32,7 @@
 #include "myoskin/skin_solve.h"
 #include "myoskin/sections.h"
 #include "myoskin/skinning.h"
+#include "myoskin/volume_blend.h"
 #include "myoskin/synthetic_character.h"
 
 using namespace myoskin;
@@ -82,12 +83,15 @@ void usage(std::ostream& out) {
          "          [--roles ROLES.json]\n"
          "          extract muscles from the skin (the whole character: every mesh its skin deforms, or --mesh)\n"
          "  deform CHARACTER [--muscles M.json] --pose P.json -o out.obj|out.pc2 [--dominance D] [--threads N]\n"
-         "          [--preserve-volume [--dq-scale pivot|blended]] [--method eq3|anchored] [--relax-iterations N]\n"
+         "          [--preserve-volume | --volume-blend] [--dq-scale pivot|blended] [--method eq3|anchored]\n"
+         "          [--relax-iterations N]\n"
          "          skin a pose (.obj) or a sequence of poses (.pc2, Blender's Mesh Cache modifier);\n"
          "          --method anchored anchors the skin to muscle ellipsoids, bone capsules and joint spheres\n"
          "          (Schneider & Wilhelms 1998) instead of Equation 3 (eq3, the default);\n"
          "          --preserve-volume blends the joints as dual quaternions (Blender's Preserve Volume; scaled\n"
-         "          joints as Blender 4.x/5.x do, or --dq-scale blended as Blender 3.x); pose\n"
+         "          joints as Blender 4.x/5.x do, or --dq-scale blended as Blender 3.x); --volume-blend mixes\n"
+         "          the linear and the dual-quaternion skin per vertex so joints keep their volume (the add-on's\n"
+         "          Volume Blend: the two Armature modifiers Bind adds); pose\n"
          "          files: {\"bones\": {name: {\"rotation_quaternion\": [w,x,y,z]}}} or {\"frames\": [...]}\n"
          "  simulate CHARACTER --pose SEQUENCE.json -o out.pc2 [--muscles M.json] [--jiggle] [--filter]\n"
          "          [--sculpt SCULPT.obj [--sculpt-frame F]] [--frames A-B] [--state-in S.json] [--state-out S.json]\n"
@@ -324,9 +328,14 @@ BoundSkin bindFromArgs(const Args& args, const std::string& command, const std::
     if (f != "--preserve-volume" && std::find(flags.begin(), flags.end(), f) == flags.end())
       throw InputError(command + ": unknown option '" + f + "'");
   b.options.preserveVolume = std::find(args.flags.begin(), args.flags.end(), "--preserve-volume") != args.flags.end();
+  const bool volumeBlend = std::find(args.flags.begin(), args.flags.end(), "--volume-blend") != args.flags.end();
+  if (volumeBlend && b.options.preserveVolume)
+    throw InputError(command + ": --volume-blend and --preserve-volume exclude each other (the blend mixes linear "
+                     "and dual quaternions itself)");
   if (args.options.count("--dq-scale")) {
     const std::string mode = args.options.at("--dq-scale");
-    if (!b.options.preserveVolume) throw InputError(command + ": --dq-scale needs --preserve-volume");
+    if (!b.options.preserveVolume && !volumeBlend)
+      throw InputError(command + ": --dq-scale needs --preserve-volume or --volume-blend");
     if (mode == "blended")
       b.options.dualQuatScale = DualQuatScale::Blended;
     else if (mode != "pivot")
@@ -344,7 +353,11 @@ BoundSkin bindFromArgs(const Args& args, const std::string& command, const std::
     b.weights = computeHybridWeights(c.mesh, c.weights, *b.rig, ho);
   }
   const int numJoints = c.skeleton.numBones() + (b.rig ? b.rig->numJoints() : 0);
-  if (b.options.preserveVolume) {
+  if (volumeBlend) {  // shares from the skeleton weights; the joints' rest frames shape the dual-quaternion part
+    const Eigen::VectorXd share = computeDqsShare(c.skeleton, c.weights, c.mesh);
+    b.options.dqsShare.assign(share.data(), share.data() + share.size());
+  }
+  if (b.options.preserveVolume || volumeBlend) {
     if (b.rig) {
       b.options.jointRest = combinedRestMatrices(c.skeleton, *b.rig);
     } else {
@@ -375,7 +388,7 @@ int cmdDeform(const Args& args) {
     return deformAnchored(args, c, poses, out, pc2);
   }
   if (args.options.count("--relax-iterations")) throw InputError("deform: --relax-iterations is for --method anchored");
-  const BoundSkin b = bindFromArgs(args, "deform", {});
+  const BoundSkin b = bindFromArgs(args, "deform", {"--volume-blend"});
   const Character& c = b.character;
   const PoseSequence poses = readPoseJson(args.options.at("--pose"), c.skeleton);
   if (!pc2 && poses.frames.size() != 1)
@@ -408,7 +421,7 @@ int cmdDeform(const Args& args) {
     b.skinner->deform(transforms, positions);
     writeObj(out, positions, c.mesh.triangles);
   }
-  const char* mode = b.options.preserveVolume ? ", preserve volume" : "";
+  const char* mode = !b.options.dqsShare.empty() ? ", volume blend" : b.options.preserveVolume ? ", preserve volume" : "";
   if (rig)
     std::printf("deformed %s (%d vertices, %d bones + %d muscle joints of %d muscles%s): %zu frame(s) -> %s\n",
                 c.name.c_str(), c.mesh.numVertices(), c.skeleton.numBones(), rig->numJoints(), rig->numMuscles(),

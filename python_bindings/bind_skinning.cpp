@@ -8,6 +8,7 @@
 #include "myoskin/character.h"
 #include "myoskin/errors.h"
 #include "myoskin/skinning.h"
+#include "myoskin/volume_blend.h"
 
 namespace myoskin::python {
 
@@ -65,8 +66,11 @@ SkinWeights weightsArg(const IntArray& joints, const DoubleArray& weights, Eigen
 }
 
 // Skinner options from the Python arguments; rest_matrices (None or #J by 4 by 4) only with preserve_volume.
+// dqs_share (None or #V values in [0, 1]) the volume blend's per-vertex dual-quaternion shares; rest_matrices are
+// then allowed too (they shape the dual-quaternion part).
 SkinnerOptions skinnerOptions(int grainSize, int threads, double sumTolerance, bool preserveVolume,
-                              const py::object& restMatrices, const std::string& dqScale) {
+                              const py::object& restMatrices, const std::string& dqScale,
+                              const py::object& dqsShare = py::none()) {
   SkinnerOptions o{grainSize, threads, sumTolerance};
   o.preserveVolume = preserveVolume;
   if (dqScale == "pivot")
@@ -75,8 +79,14 @@ SkinnerOptions skinnerOptions(int grainSize, int threads, double sumTolerance, b
     o.dualQuatScale = DualQuatScale::Blended;
   else
     throw InputError("dq_scale must be 'pivot' (Blender 4.x/5.x) or 'blended' (Blender 3.x), got '" + dqScale + "'");
+  if (!dqsShare.is_none()) {
+    const DoubleArray a = dqsShare.cast<DoubleArray>();
+    if (a.ndim() != 1) throw InputError("dqs_share must be #V values, got shape " + shapeOf(a));
+    o.dqsShare.assign(a.data(), a.data() + a.size());
+  }
   if (!restMatrices.is_none()) {
-    if (!preserveVolume) throw InputError("rest_matrices are only used with preserve_volume=True");
+    if (!preserveVolume && o.dqsShare.empty())
+      throw InputError("rest_matrices are only used with preserve_volume=True or dqs_share");
     o.jointRest = matricesFromArray(restMatrices.cast<DoubleArray>(), "rest_matrices");
   }
   return o;
@@ -96,11 +106,11 @@ void bindSkinning(py::module_& m) {
       "semantics: normalised at deform time, weight sum <= 1e-4 stays at rest); deform() per frame.")
       .def(py::init([](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, int numJoints,
                        int grainSize, int threads, double sumTolerance, bool preserveVolume,
-                       const py::object& restMatrices, const std::string& dqScale) {
+                       const py::object& restMatrices, const std::string& dqScale, const py::object& dqsShare) {
              const Points p = pointsArg(rest, "rest_vertices");
              const SkinWeights w = weightsArg(joints, weights, p.rows());
              const SkinnerOptions o =
-                 skinnerOptions(grainSize, threads, sumTolerance, preserveVolume, restMatrices, dqScale);
+                 skinnerOptions(grainSize, threads, sumTolerance, preserveVolume, restMatrices, dqScale, dqsShare);
              py::gil_scoped_release release;
              return std::make_shared<Skinner>(p, w, numJoints, o);
            }),
@@ -108,12 +118,16 @@ void bindSkinning(py::module_& m) {
            py::arg("grain_size") = SkinnerOptions{}.grainSize, py::arg("threads") = SkinnerOptions{}.threads,
            py::arg("sum_tolerance") = SkinnerOptions{}.sumTolerance, py::kw_only(),
            py::arg("preserve_volume") = false, py::arg("rest_matrices") = py::none(), py::arg("dq_scale") = "pivot",
+           py::arg("dqs_share") = py::none(),
            "rest_vertices #V by 3, weight_joints/weight_values #V by K (joint -1 = empty slot) over num_joints "
            "combined joints. sum_tolerance > 0 requires every row to sum to 1 (else rows are normalised, like "
            "Blender). preserve_volume=True blends dual quaternions as Blender's Armature modifier does with "
            "Preserve Volume; rest_matrices (#J by 4 by 4, the joints' rest matrices: combined_rest_matrices) "
            "are needed for Blender's result on joints with scale, and dq_scale says which Blender's scale handling: "
-           "'pivot' (4.x, 5.x) or 'blended' (3.x). ValueError names the offending vertex and slot.")
+           "'pivot' (4.x, 5.x) or 'blended' (3.x). dqs_share (#V values in [0, 1], compute_dqs_share) turns on the "
+           "volume blend: each vertex (1 - s) * linear + s * dual quaternion, as Blender's linear Armature modifier "
+           "followed by one with Preserve Volume and Multi Modifier over the vertex group of weight s (preserve_volume "
+           "is then ignored). ValueError names the offending vertex and slot.")
       .def(
           "deform",
           [](const Skinner& s, const DoubleArray& transforms) {
@@ -150,6 +164,8 @@ void bindSkinning(py::module_& m) {
           "threads", [](const Skinner& s) { return s.options().threads; },
           [](Skinner& s, int t) { SkinnerOptions o = s.options(); o.threads = t; s.setOptions(o); })
       .def_property_readonly("preserve_volume", [](const Skinner& s) { return s.options().preserveVolume; })
+      .def_property_readonly("volume_blend", [](const Skinner& s) { return !s.options().dqsShare.empty(); },
+                             "True when built with dqs_share")
       .def_property(
           "grain_size", [](const Skinner& s) { return s.options().grainSize; },
           [](Skinner& s, int g) { SkinnerOptions o = s.options(); o.grainSize = g; s.setOptions(o); });
@@ -157,20 +173,72 @@ void bindSkinning(py::module_& m) {
   m.def(
       "skin",
       [](const DoubleArray& rest, const IntArray& joints, const DoubleArray& weights, const DoubleArray& transforms,
-         bool preserveVolume, const py::object& restMatrices, const std::string& dqScale) {
+         bool preserveVolume, const py::object& restMatrices, const std::string& dqScale, const py::object& dqsShare) {
         const Points p = pointsArg(rest, "rest_vertices");
         const SkinWeights w = weightsArg(joints, weights, p.rows());
         const std::vector<Mat4> t = matricesFromArray(transforms, "transforms");
         const SkinnerOptions o = skinnerOptions(SkinnerOptions{}.grainSize, SkinnerOptions{}.threads, 0.0,
-                                                preserveVolume, restMatrices, dqScale);
+                                                preserveVolume, restMatrices, dqScale, dqsShare);
         py::gil_scoped_release release;
         return skin(p, w, t, o);
       },
       py::arg("rest_vertices"), py::arg("weight_joints"), py::arg("weight_values"), py::arg("transforms"),
       py::kw_only(), py::arg("preserve_volume") = false, py::arg("rest_matrices") = py::none(),
-      py::arg("dq_scale") = "pivot",
+      py::arg("dq_scale") = "pivot", py::arg("dqs_share") = py::none(),
       "One-shot Equation 3 (or, preserve_volume=True, Blender's dual quaternion blend with the joints' "
-      "rest_matrices and dq_scale 'pivot' | 'blended'): #V by 3 float64 positions for #J by 4 by 4 skinning transforms.");
+      "rest_matrices and dq_scale 'pivot' | 'blended'; or, dqs_share, the volume blend of the two): #V by 3 float64 "
+      "positions for #J by 4 by 4 skinning transforms.");
+
+  m.def(
+      "compute_dqs_share",
+      [](const Character& c, double bendDegrees, double bandRadius, double keepTolerance, double minBlend,
+         const py::object& up,
+         bool withJoints) -> py::object {
+        if (!c.hasWeights()) throw InputError("compute_dqs_share: character '" + c.name + "' has no skin weights");
+        VolumeBlendOptions o;
+        o.bendDegrees = bendDegrees;
+        o.bandRadius = bandRadius;
+        o.keepTolerance = keepTolerance;
+        o.minBlend = minBlend;
+        if (!up.is_none()) {
+          const DoubleArray a = up.cast<DoubleArray>();
+          if (a.size() != 3) throw InputError("up must be 3 numbers, got shape " + shapeOf(a));
+          o.up = Vec3(a.data()[0], a.data()[1], a.data()[2]);
+          if (!o.up.allFinite() || o.up.norm() == 0.0) throw InputError("up must be a finite non-zero vector");
+        }
+        Eigen::VectorXd share;
+        std::vector<JointVolumeBlend> joints;
+        {
+          py::gil_scoped_release release;
+          share = computeDqsShare(c.skeleton, c.weights, c.mesh, o, &joints);
+        }
+        if (!withJoints) return py::cast(share);
+        py::list rows;
+        for (const JointVolumeBlend& j : joints) {
+          py::dict d;
+          d["bone"] = c.skeleton.bones[j.bone].name;
+          d["radius"] = j.radius;
+          d["blended_vertices"] = j.blendedVertices;
+          d["band_triangles"] = j.bandTriangles;
+          d["share"] = j.share;
+          d["linear_change"] = j.linearChange;
+          d["dual_quat_change"] = j.dualQuatChange;
+          d["blend_change"] = j.blendChange;
+          d["axis"] = py::make_tuple(j.axis.x(), j.axis.y(), j.axis.z());
+          rows.append(d);
+        }
+        return py::make_tuple(share, rows);
+      },
+      py::arg("character"), py::kw_only(), py::arg("bend_degrees") = VolumeBlendOptions{}.bendDegrees,
+      py::arg("band_radius") = VolumeBlendOptions{}.bandRadius,
+      py::arg("keep_tolerance") = VolumeBlendOptions{}.keepTolerance, py::arg("min_blend") = VolumeBlendOptions{}.minBlend,
+      py::arg("up") = py::none(), py::arg("with_joints") = false,
+      "Volume blend: #V dual-quaternion shares in [0, 1] (Skinner's dqs_share) from the character's skeleton, skeleton "
+      "weights and rest skin: per real joint the share whose band (band_radius joint radii) keeps its volume at a "
+      "flexion of bend_degrees (the largest within keep_tolerance x linear's change of the best; forward; backward at knees; up: the body's up axis, None = +Y if the skin is taller "
+      "along Y than Z, else +Z; the character's left is +X), each vertex the blend-weighted mean over the joints its weights blend across (min_blend), "
+      "1 elsewhere. with_joints=True also returns one dict per joint (bone, radius, share, linear_change, "
+      "dual_quat_change, blend_change, ...).");
 
   m.def(
       "combined_rest_matrices",

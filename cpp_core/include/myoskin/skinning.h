@@ -129,6 +129,13 @@ struct SkinnerOptions {
   // numJoints of them, or empty = identity. Only joints with scale or shear depend on it (the frame in which
   // scale is split from rotation), so rigid transforms give the same result either way.
   std::vector<Mat4> jointRest;
+  // Volume blend (volume_blend.h): #V shares s in [0, 1], empty = off (every vertex linear, or every vertex dual
+  // quaternion with preserveVolume, as above). When set, each vertex is (1 - s) * linear + s * dual quaternion
+  // (preserveVolume is then ignored; dualQuatScale and jointRest still shape the dual-quaternion part), computed in
+  // float32 as Blender's second Armature modifier with Preserve Volume and Multi Modifier mixes its result with the
+  // first (linear) one through the vertex group of weight s: s = 0 is the linear result, s = 1 the dual-quaternion
+  // one, bit for bit.
+  std::vector<double> dqsShare;
 };
 
 // Equation 3 (or, with SkinnerOptions::preserveVolume, Blender's dual-quaternion blend) in float32 over a
@@ -140,7 +147,8 @@ class Skinner {
  public:
   // rest: #V by 3; weights: #V by K over [0, numJoints). Throws InputError naming the offending
   // vertex/slot on a size mismatch, NaN/inf or negative weight, or a joint index outside [-1, numJoints),
-  // and on options.jointRest of the wrong count or with a non-finite or singular matrix.
+  // on options.jointRest of the wrong count or with a non-finite or singular matrix, and on options.dqsShare of a
+  // length other than #V or with a value outside [0, 1] (NaN included).
   Skinner(const Points& rest, const SkinWeights& weights, int numJoints, const SkinnerOptions& options = {});
   ~Skinner();
   Skinner(Skinner&&) noexcept;

@@ -39,6 +39,10 @@ struct Skinner::Impl {
   mutable std::shared_mutex optionsMutex;  // deform (shared) against setOptions (exclusive): the arena
                                            // must not be replaced while a deform runs in it
 
+  std::vector<float> shareF;         // options.dqsShare in float32 (Blender's vertex group), empty = off
+
+  void setShare() { shareF.assign(options.dqsShare.begin(), options.dqsShare.end()); }
+
   void makeArena() {
     arena.reset();
     if (options.threads > 0) arena = std::make_unique<tbb::task_arena>(options.threads);
@@ -362,8 +366,39 @@ void parallelRanges(const Skinner::Impl& s, const Range& range) {
   }
 }
 
+// Blender's multi-modifier mix of the second (dual-quaternion) Armature modifier with the first (linear) one, in
+// float32 (BKE armature_deform: prevco_weight = 1 - group weight, result = prevco_weight * previous + (1 -
+// prevco_weight) * own; a vertex of weight 0 keeps the previous result).
+void volumeBlendRange(const float* share, const float* dualQuat, int begin, int end, float* out) {
+  for (int v = begin; v < end; ++v) {
+    const float prevWeight = 1.0f - share[v];
+    if (prevWeight == 1.0f) continue;
+    const float own = 1.0f - prevWeight;
+    for (int c = 0; c < 3; ++c) {
+      const size_t i = 3 * static_cast<size_t>(v) + c;
+      out[i] = prevWeight * out[i] + own * dualQuat[i];
+    }
+  }
+}
+
 void deformInto(const Skinner::Impl& s, const std::vector<Mat4>& transforms, float* out) {
   std::shared_lock<std::shared_mutex> lock(s.optionsMutex);
+  if (!s.shareF.empty()) {  // volume blend: linear, dual quaternions, then Blender's mix
+    const std::vector<JointDQ> D = packDualQuats(transforms, s);
+    const std::vector<PackedTransform> T = packTransforms(transforms, s.numJoints);
+    const RangeKernel kernel = chooseKernel();
+    std::vector<float> dq(3 * static_cast<size_t>(s.numVertices));
+    const bool blended = s.options.dualQuatScale == DualQuatScale::Blended;
+    parallelRanges(s, [&](int begin, int end) {
+      runRange(kernel, s, T.data(), begin, end, out);
+      if (blended)
+        skinRangeDualQuat<true>(s, D.data(), begin, end, dq.data());
+      else
+        skinRangeDualQuat<false>(s, D.data(), begin, end, dq.data());
+      volumeBlendRange(s.shareF.data(), dq.data(), begin, end, out);
+    });
+    return;
+  }
   if (s.options.preserveVolume) {
     const std::vector<JointDQ> D = packDualQuats(transforms, s);
     if (s.options.dualQuatScale == DualQuatScale::Blended)
@@ -377,7 +412,16 @@ void deformInto(const Skinner::Impl& s, const std::vector<Mat4>& transforms, flo
   parallelRanges(s, [&](int begin, int end) { runRange(kernel, s, T.data(), begin, end, out); });
 }
 
-void validateOptions(const SkinnerOptions& o, int numJoints) {
+void validateOptions(const SkinnerOptions& o, int numJoints, int numVertices) {
+  if (!o.dqsShare.empty()) {
+    if (static_cast<int>(o.dqsShare.size()) != numVertices)
+      throw InputError("skinning: " + std::to_string(o.dqsShare.size()) + " dual-quaternion shares for " +
+                       std::to_string(numVertices) + " vertices");
+    for (size_t v = 0; v < o.dqsShare.size(); ++v)
+      if (!(o.dqsShare[v] >= 0.0 && o.dqsShare[v] <= 1.0))
+        throw InputError("skinning: vertex " + std::to_string(v) + " has a dual-quaternion share " +
+                         std::to_string(o.dqsShare[v]) + ", outside [0, 1]");
+  }
   if (o.jointRest.empty()) return;
   if (static_cast<int>(o.jointRest.size()) != numJoints)
     throw InputError("skinning: " + std::to_string(o.jointRest.size()) + " joint rest matrices for " +
@@ -411,7 +455,7 @@ Skinner::Skinner(const Points& rest, const SkinWeights& weights, int numJoints, 
   if (weights.numVertices() != rest.rows())
     throw InputError("skinning: " + std::to_string(weights.numVertices()) + " weight rows for " +
                      std::to_string(rest.rows()) + " vertices");
-  validateOptions(options, numJoints);
+  validateOptions(options, numJoints, static_cast<int>(rest.rows()));
   const int nv = static_cast<int>(rest.rows());
   const int kin = weights.influences();
   requireMemory(skinnerMemoryEstimate(nv, kin), "skinning " + std::to_string(nv) + " vertices");
@@ -436,6 +480,7 @@ Skinner::Skinner(const Points& rest, const SkinWeights& weights, int numJoints, 
   s.numJoints = numJoints;
   s.slots = slots;
   s.options = options;
+  s.setShare();
   s.x.resize(nv);
   s.y.resize(nv);
   s.z.resize(nv);
@@ -481,9 +526,10 @@ int Skinner::restVertices() const { return impl_->restCount; }
 const SkinnerOptions& Skinner::options() const { return impl_->options; }
 
 void Skinner::setOptions(const SkinnerOptions& options) {
-  validateOptions(options, impl_->numJoints);
+  validateOptions(options, impl_->numJoints, impl_->numVertices);
   std::unique_lock<std::shared_mutex> lock(impl_->optionsMutex);
   impl_->options = options;
+  impl_->setShare();
   impl_->makeArena();
 }
 
@@ -624,6 +670,23 @@ void Skinner::vertexTransforms(const std::vector<Mat4>& transforms, VertexTransf
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 4; ++c) out(v, 4 * r + c) = m(r, c);
   };
+  if (!s.shareF.empty()) {  // the blend of two affine maps is affine
+    const std::vector<JointDQ> D = packDualQuats(transforms, s);
+    const bool blended = s.options.dualQuatScale == DualQuatScale::Blended;
+    parallelRanges(s, [&](int begin, int end) {
+      for (int v = begin; v < end; ++v) {
+        const double share = s.shareF[v];
+        const Mat34 lin = linearAffine(s, transforms, v);
+        if (share == 0.0) {
+          store(v, lin);
+          continue;
+        }
+        const Mat34 dq = blended ? dualQuatAffine<true>(s, D.data(), v) : dualQuatAffine<false>(s, D.data(), v);
+        store(v, (1.0 - share) * lin + share * dq);
+      }
+    });
+    return;
+  }
   if (s.options.preserveVolume) {
     const std::vector<JointDQ> D = packDualQuats(transforms, s);
     const bool blended = s.options.dualQuatScale == DualQuatScale::Blended;

@@ -1,0 +1,74 @@
+// Volume blend (issue 14 item 3, "joints keep their volume"): a per-vertex share s in [0, 1] between the linear
+// (Equation 3) skin and the dual-quaternion one (Blender's Preserve Volume), SkinnerOptions::dqsShare:
+//   p = (1 - s) * linear + s * dual quaternion.
+// Linear blending loses volume at a bent joint (the crease collapses), dual quaternions keep it or, at joints whose
+// skin the skeleton blends over a wide band (hips, some knees), over-inflate it. The share of each real joint is the
+// one that keeps its band's volume at a reference bend; a vertex takes the shares of the joints its skeleton weights
+// blend across. Blender evaluates the same result with two Armature modifiers (the second with Preserve Volume and
+// Multi Modifier, the share as its vertex group), so Blender = core stays exact.
+#pragma once
+#include <vector>
+
+#include "myoskin/mesh.h"
+#include "myoskin/skeleton.h"
+#include "myoskin/skin_weights.h"
+#include "myoskin/types.h"
+
+namespace myoskin {
+
+// ============================================================================
+// Options and per-joint report
+// ============================================================================
+
+struct VolumeBlendOptions {
+  // Reference flexion of each joint, in degrees: the joint's child subtree turns about the joint by this angle in the
+  // body's sagittal swing (forward, about d x facing, d the child bone's direction; backward where the child and the
+  // bone above it both point down: knees, hocks; a child along the facing, a foot, turns its tail down), and the
+  // joint's share is the one whose band volume change is closest to 0 there (1 where dual quaternions lose volume).
+  double bendDegrees = 90.0;
+  // The joint's share is the largest whose band change at the reference flexion is within keepTolerance x |linear's
+  // change| of the smallest change any share gives: dual quaternions are kept where they already keep the volume that
+  // well (measured: generated bipeds' elbows +0.8..+1.3 % against linear's -16..-22 % at 90 degrees, which a share
+  // of 0.93-0.98 would zero but then lose 1-2 points more at 120 degrees).
+  double keepTolerance = 0.1;
+  // Band = the skin within bandRadius limb radii of the joint (bodyLimbRadius: the median distance of the limbs' skin
+  // from their bones, so the band scales with the body; benchmarks/skin_quality.py measures the same band).
+  double bandRadius = 1.5;
+  // A vertex belongs to a joint's blend when b = 2 min(share inside the child's subtree, share outside) >= minBlend
+  // (b = 1 at an even blend across the joint, 0 on skin one side moves alone).
+  double minBlend = 0.05;
+  // The body's up axis; zero = automatic: +Y when the skin is taller along Y than along Z (glTF), else +Z (Blender).
+  // The character's left is +X in both conventions, so facing = X x up (glTF +Z, Blender -Y).
+  Vec3 up = Vec3::Zero();
+};
+
+// What computeDqsShare found at one joint (the head of `bone`, whose subtree turns).
+struct JointVolumeBlend {
+  int bone = -1;
+  double radius = 0.0;        // the body's limb radius the band is measured in (character units)
+  int blendedVertices = 0;    // vertices with b >= minBlend
+  int bandTriangles = 0;      // triangles whose three vertices lie in the band
+  double share = 1.0;         // the joint's dual-quaternion share
+  double linearChange = 0.0;    // band volume change at the reference flexion, linear (relative to rest)
+  double dualQuatChange = 0.0;  // the same, dual quaternions
+  double blendChange = 0.0;     // the same, with the chosen share
+  Vec3 axis = Vec3::Zero();     // the reference flexion's rotation axis (unit)
+};
+
+// ============================================================================
+// Shares
+// ============================================================================
+
+// #V dual-quaternion shares in [0, 1] for a skin (#V vertices, its triangles) bound to a skeleton by its skeleton
+// weights (#V by K over the bones): for each real joint (a bone with a parent, not a twist split: twistSplits) whose
+// skin the skeleton blends across it, the share s_j in [0, 1] minimising |band volume change| of the blend at the
+// reference flexion (within keepTolerance; s_j = 1 where dual quaternions lose volume there too: elbows, shoulders); each vertex takes sum_j b_j s_j / sum_j b_j over the joints it
+// blends across (b_j >= minBlend), 1 where it blends across none (one bone moves it; only muscle joints' scale tell the
+// two blends apart there, and dual quaternions keep it as today's Preserve Volume does). Deterministic (no threads).
+// `joints` (optional) receives one entry per joint measured. Throws InputError on mismatched sizes, bad weights or
+// indices, non-finite vertices or options out of range (bendDegrees in (0, 180], bandRadius > 0, keepTolerance in
+// [0, 1], minBlend in (0, 1]).
+Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& skeletonWeights, const Mesh& skin,
+                                const VolumeBlendOptions& options = {}, std::vector<JointVolumeBlend>* joints = nullptr);
+
+}  // namespace myoskin

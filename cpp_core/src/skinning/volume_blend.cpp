@@ -1,0 +1,221 @@
+// Volume blend shares (volume_blend.h): per joint the dual-quaternion share that keeps the band's volume at a
+// reference bend, spread over the skin the joint's skeleton weights blend.
+#include "myoskin/volume_blend.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include <Eigen/Geometry>
+
+#include "myoskin/character.h"
+#include "myoskin/errors.h"
+#include "myoskin/extraction.h"
+#include "myoskin/sections.h"
+#include "myoskin/skinning.h"
+
+namespace myoskin {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr int kShareSteps = 100;  // shares tried: 0, 1/100, ..., 1
+
+// ============================================================================
+// Checks
+// ============================================================================
+
+// InputError on mismatched sizes, bad indices or weights, non-finite vertices or options out of range.
+void validate(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin, const VolumeBlendOptions& o) {
+  if (!(o.bendDegrees > 0.0 && o.bendDegrees <= 180.0))
+    throw InputError("volume blend: bendDegrees must be in (0, 180], got " + std::to_string(o.bendDegrees));
+  if (!(o.bandRadius > 0.0 && std::isfinite(o.bandRadius)))
+    throw InputError("volume blend: bandRadius must be > 0, got " + std::to_string(o.bandRadius));
+  if (!(o.keepTolerance >= 0.0 && o.keepTolerance <= 1.0))
+    throw InputError("volume blend: keepTolerance must be in [0, 1], got " + std::to_string(o.keepTolerance));
+  if (!(o.minBlend > 0.0 && o.minBlend <= 1.0))
+    throw InputError("volume blend: minBlend must be in (0, 1], got " + std::to_string(o.minBlend));
+  validateSkeleton(skeleton);
+  if (skin.numVertices() == 0) throw InputError("volume blend: the skin has no vertices");
+  if (!skin.vertices.allFinite()) throw InputError("volume blend: the skin has a NaN or infinite vertex");
+  validateSkinWeights(w, skin.numVertices(), skeleton.numBones());
+  for (Eigen::Index i = 0; i < skin.triangles.size(); ++i)
+    if (skin.triangles.data()[i] < 0 || skin.triangles.data()[i] >= skin.numVertices())
+      throw InputError("volume blend: triangle " + std::to_string(i / 3) + " uses vertex " +
+                       std::to_string(skin.triangles.data()[i]) + ", outside the skin");
+}
+
+// ============================================================================
+// One joint
+// ============================================================================
+
+// Signed cone volume of triangles (indices into p) from apex.
+double coneVolume(const Points& p, const Triangles& tris, const Vec3& apex) {
+  double v = 0.0;
+  for (Eigen::Index f = 0; f < tris.rows(); ++f) {
+    const Vec3 a = p.row(tris(f, 0)).transpose() - apex, b = p.row(tris(f, 1)).transpose() - apex,
+               c = p.row(tris(f, 2)).transpose() - apex;
+    v += a.dot(b.cross(c));
+  }
+  return v / 6.0;
+}
+
+// The joint at bone c's head: its band (bandRadius body limb radii) and share at the reference flexion about
+// flexionAxis (fills `out`; false when it blends no skin or has no band).
+bool measureJoint(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin, const VolumeBlendOptions& o,
+                  int c, double limbRadius, const Vec3& flexionAxis, const std::vector<char>& inSubtree,
+                  const Eigen::VectorXd& blend, JointVolumeBlend& out) {
+  const int nv = skin.numVertices();
+  const Vec3 joint = skeleton.bones[c].head;
+  int blended = 0;
+  for (int v = 0; v < nv; ++v) blended += blend[v] >= o.minBlend;
+  out.bone = c;
+  out.blendedVertices = blended;
+  out.radius = limbRadius;
+  if (blended == 0) return false;
+  // The band: local copies of its vertices, weights and triangles.
+  const double reach = o.bandRadius * limbRadius;
+  std::vector<int> local(nv, -1);
+  std::vector<int> ids;
+  for (int v = 0; v < nv; ++v)
+    if ((skin.vertices.row(v).transpose() - joint).norm() <= reach) {
+      local[v] = static_cast<int>(ids.size());
+      ids.push_back(v);
+    }
+  std::vector<Eigen::Vector3i> faces;
+  for (Eigen::Index f = 0; f < skin.triangles.rows(); ++f) {
+    const int a = local[skin.triangles(f, 0)], b = local[skin.triangles(f, 1)], d = local[skin.triangles(f, 2)];
+    if (a >= 0 && b >= 0 && d >= 0) faces.emplace_back(a, b, d);
+  }
+  out.bandTriangles = static_cast<int>(faces.size());
+  if (faces.empty()) return false;
+  const int n = static_cast<int>(ids.size());
+  Points rest(n, 3);
+  SkinWeights sub;
+  sub.joints.resize(n, w.influences());
+  sub.weights.resize(n, w.influences());
+  for (int i = 0; i < n; ++i) {
+    rest.row(i) = skin.vertices.row(ids[i]);
+    sub.joints.row(i) = w.joints.row(ids[i]);
+    sub.weights.row(i) = w.weights.row(ids[i]);
+  }
+  Triangles tris(static_cast<Eigen::Index>(faces.size()), 3);
+  for (size_t f = 0; f < faces.size(); ++f) tris.row(static_cast<Eigen::Index>(f)) = faces[f].transpose();
+  const int nb = skeleton.numBones();
+  SkinnerOptions linearOptions;
+  linearOptions.threads = 1;
+  SkinnerOptions dqOptions = linearOptions;
+  dqOptions.preserveVolume = true;
+  for (const Bone& b : skeleton.bones) dqOptions.jointRest.push_back(b.rest);
+  Skinner skinner(rest, sub, nb, linearOptions);
+  const double v0 = coneVolume(rest, tris, joint);
+  if (!(std::abs(v0) > 0.0)) return false;
+  // Band volume change for each tried share at the reference flexion.
+  Mat4 turn = Mat4::Identity();
+  turn.block<3, 3>(0, 0) = Eigen::AngleAxisd(o.bendDegrees * kPi / 180.0, flexionAxis).toRotationMatrix();
+  turn.block<3, 1>(0, 3) = joint - turn.block<3, 3>(0, 0) * joint;
+  std::vector<Mat4> transforms(nb, Mat4::Identity());
+  for (int b = 0; b < nb; ++b)
+    if (inSubtree[b]) transforms[b] = turn;
+  Points lin, dq;
+  skinner.deform(transforms, lin);
+  skinner.setOptions(dqOptions);
+  skinner.deform(transforms, dq);
+  std::vector<double> change(kShareSteps + 1);
+  for (int k = 0; k <= kShareSteps; ++k) {
+    const double s = static_cast<double>(k) / kShareSteps;
+    const Points p = (1.0 - s) * lin + s * dq;
+    change[k] = (coneVolume(p, tris, joint) - v0) / std::abs(v0);
+  }
+  // The largest share whose change is within keepTolerance x |linear's change| of the smallest change (dual
+  // quaternions where they keep the volume well enough or lose it anyway).
+  double smallest = std::abs(change[0]);
+  for (double x : change) smallest = std::min(smallest, std::abs(x));
+  const double allowed = std::max(smallest, o.keepTolerance * std::abs(change[0]));
+  int best = kShareSteps;
+  while (best > 0 && std::abs(change[best]) > allowed) --best;
+  out.share = static_cast<double>(best) / kShareSteps;
+  out.axis = flexionAxis;
+  out.linearChange = change[0];
+  out.dualQuatChange = change[kShareSteps];
+  out.blendChange = change[best];
+  return true;
+}
+
+}  // namespace
+
+// ============================================================================
+// Shares over the skin
+// ============================================================================
+
+Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin,
+                                const VolumeBlendOptions& options, std::vector<JointVolumeBlend>* joints) {
+  validate(skeleton, w, skin, options);
+  const int nv = skin.numVertices(), nb = skeleton.numBones();
+  if (joints) joints->clear();
+  Eigen::VectorXd shareSum = Eigen::VectorXd::Zero(nv), blendSum = Eigen::VectorXd::Zero(nv);
+  Eigen::VectorXd total = Eigen::VectorXd::Zero(nv);
+  for (int v = 0; v < nv; ++v)
+    for (int k = 0; k < w.influences(); ++k)
+      if (w.joints(v, k) >= 0) total[v] += w.weights(v, k);
+  // Body frame: +X the character's left (glTF and Blender alike), up the taller of +Y (glTF) and +Z (Blender)
+  // unless given, facing = left x up (glTF +Z, Blender -Y).
+  const Vec3 extent = skin.vertices.colwise().maxCoeff() - skin.vertices.colwise().minCoeff();
+  const Vec3 up = options.up.squaredNorm() > 0.0 ? Vec3(options.up.normalized())
+                                                   : (extent.y() >= extent.z() ? Vec3::UnitY() : Vec3::UnitZ());
+  const Vec3 left = (Vec3::UnitX() - Vec3::UnitX().dot(up) * up).normalized();
+  const Vec3 facing = left.cross(up);
+  Character body;
+  body.mesh = skin;
+  body.skeleton = skeleton;
+  body.weights = w;
+  const Skeleton joined = weightedSkeleton(body);  // tails at the continuing child's head (importers guess them)
+  const std::vector<char> twist = twistSplits(skeleton, w);
+  const double limbRadius = bodyLimbRadius(body, characterBoneRoles(body));
+  auto direction = [&](int b) { return Vec3((joined.bones[b].tail - joined.bones[b].head).normalized()); };
+  std::vector<char> inSubtree(nb);
+  Eigen::VectorXd blend(nv);
+  for (int c = 0; c < nb; ++c) {
+    if (skeleton.bones[c].parent < 0 || twist[c]) continue;
+    for (int b = 0; b < nb; ++b) inSubtree[b] = b == c || (skeleton.bones[b].parent >= 0 && inSubtree[skeleton.bones[b].parent]);
+    // b = 2 min(inside, outside) per vertex (weights normalised; rest vertices 0).
+    bool anyBlend = false;
+    for (int v = 0; v < nv; ++v) {
+      double inside = 0.0;
+      for (int k = 0; k < w.influences(); ++k)
+        if (w.joints(v, k) >= 0 && inSubtree[w.joints(v, k)]) inside += w.weights(v, k);
+      blend[v] = total[v] > kRestWeightThreshold ? 2.0 * std::min(inside, total[v] - inside) / total[v] : 0.0;
+      anyBlend = anyBlend || blend[v] >= options.minBlend;
+    }
+    if (!anyBlend) continue;
+    // Flexion: the child swings forward (about d x facing), backward where it and the bone above it (across
+    // twist splits) both point down (a knee, a hock); a child along the facing (a foot) turns its tail down.
+    const Vec3 d = direction(c);
+    int above = skeleton.bones[c].parent;
+    while (twist[above] && skeleton.bones[above].parent >= 0) above = skeleton.bones[above].parent;
+    Vec3 axis = d.cross(facing);
+    if (axis.norm() < 0.5) {
+      axis = left - left.dot(d) * d;
+      if (axis.norm() < 1e-6) continue;
+      axis.normalize();
+      if (axis.cross(d).dot(up) > 0.0) axis = -axis;
+    } else {
+      axis.normalize();
+      if (d.dot(up) < -0.5 && direction(above).dot(up) < -0.5) axis = -axis;
+    }
+    JointVolumeBlend report;
+    if (!measureJoint(skeleton, w, skin, options, c, limbRadius, axis, inSubtree, blend, report)) continue;
+    if (joints) joints->push_back(report);
+    for (int v = 0; v < nv; ++v)
+      if (blend[v] >= options.minBlend) {
+        shareSum[v] += blend[v] * report.share;
+        blendSum[v] += blend[v];
+      }
+  }
+  Eigen::VectorXd share = Eigen::VectorXd::Ones(nv);
+  for (int v = 0; v < nv; ++v)
+    if (blendSum[v] > 0.0) share[v] = std::clamp(shareSum[v] / blendSum[v], 0.0, 1.0);
+  return share;
+}
+
+}  // namespace myoskin
