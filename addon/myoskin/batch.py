@@ -52,6 +52,9 @@ def parse_args(argv):
     p.add_argument("--bind", action="store_true", help="bind the muscles to the armature")
     p.add_argument("--deformer", choices=("joints", "anchored"), default=None,
                    help="with --bind: muscle joints (Equation 3, the default) or the anchored skin")
+    p.add_argument("--volume-blend", choices=("on", "off"), default=None,
+                   help="with --bind: the volume blend (linear and dual-quaternion skin mixed per vertex so joints "
+                        "keep their volume; default: the rig's setting, on)")
     p.add_argument("--max-influences", type=int, default=0, metavar="N",
                    help="bones and muscle joints per vertex after --bind (default: the rig's setting, 8; 4 for game engines)")
     p.add_argument("--bake", metavar="A-B", help="bake the muscle joints to keyframes over frames A-B")
@@ -307,6 +310,8 @@ def main(argv):
     if args.bind:
         if args.deformer:
             state.deformer = args.deformer.upper()
+        if args.volume_blend:
+            state.volume_blend = args.volume_blend == "on"
         if args.max_influences:
             if not 1 <= args.max_influences <= 16:
                 fail(f"--max-influences must be in 1..16, got {args.max_influences}")

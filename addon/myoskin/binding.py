@@ -115,17 +115,123 @@ def hybrid_weights(core, character, rig, max_influences=8):
     return np.asarray(result[0]), np.asarray(result[1])
 
 
+# ------------------------------------------------------------------------------------------------
+# Volume blend: a second Armature modifier (Preserve Volume, Multi Modifier) mixed over a vertex group
+# ------------------------------------------------------------------------------------------------
+
+VOLUME_BLEND_GROUP = "myoskin_dqs_share"      # vertex group: weight 1 - s, s the vertex's dual-quaternion share
+VOLUME_BLEND_MODIFIER = "Myoskin Volume Blend"  # the second Armature modifier Bind adds
+
+
+def is_volume_blend_modifier(mod):
+    """Whether `mod` is the volume blend's second Armature modifier (Multi Modifier over the share group)."""
+    return mod.type == 'ARMATURE' and bool(mod.use_multi_modifier) and mod.vertex_group == VOLUME_BLEND_GROUP
+
+
 def armature_modifier(skin, arm):
+    """The mesh's (first) Armature modifier of `arm`, not the volume blend's second one."""
     for mod in skin.modifiers:
-        if mod.type == 'ARMATURE' and mod.object == arm:
+        if mod.type == 'ARMATURE' and mod.object == arm and not is_volume_blend_modifier(mod):
             return mod
     return None
+
+
+def volume_blend_modifier(skin, arm):
+    """The volume blend's second Armature modifier of `arm` on the mesh, or None."""
+    for mod in skin.modifiers:
+        if mod.object == arm and is_volume_blend_modifier(mod):
+            return mod
+    return None
+
+
+def armature_modifiers(skin, arm):
+    """The mesh's Armature modifiers of `arm` that skin it: the first, and the volume blend's second if any."""
+    return [m for m in (armature_modifier(skin, arm), volume_blend_modifier(skin, arm)) if m is not None]
+
+
+def _move_modifier(skin, mod, index):
+    """Put `mod` at `index` in the stack (ObjectModifiers.move where this Blender has it, else the operator)."""
+    current = list(skin.modifiers).index(mod)
+    if current == index:
+        return
+    if hasattr(skin.modifiers, "move"):
+        skin.modifiers.move(current, index)
+        return
+    with bpy.context.temp_override(object=skin, active_object=skin):
+        bpy.ops.object.modifier_move_to_index(modifier=mod.name, index=index)
+
+
+def write_share_group(skin, share):
+    """The share group on the mesh from #V dual-quaternion shares s: Blender's Multi Modifier takes the group's weight
+    as the PREVIOUS (linear) modifier's share (measured on 3.4.1: weight 0, or a vertex not in the group, gives the
+    second modifier's dual quaternions, weight 1 the linear skin), so each vertex with s < 1 gets weight 1 - s
+    (float32 in Blender) and the others stay out of the group."""
+    group = skin.vertex_groups.get(VOLUME_BLEND_GROUP) or skin.vertex_groups.new(name=VOLUME_BLEND_GROUP)
+    group.remove(list(range(len(skin.data.vertices))))
+    share = np.asarray(share, dtype=np.float64)
+    ids = np.flatnonzero(share < 1.0)
+    values = 1.0 - share[ids]
+    order = np.argsort(values, kind="stable")
+    ids, values = ids[order], values[order]
+    breaks = np.flatnonzero(np.diff(values) != 0) + 1
+    for a, b in zip(np.concatenate(([0], breaks)), np.concatenate((breaks, [len(values)]))):
+        if b > a:
+            group.add(ids[a:b].tolist(), float(values[a]), 'REPLACE')
+    return group
+
+
+def read_share_group(skin):
+    """#V float64 dual-quaternion shares s = 1 - the group's weight, as Blender mixes them (1 where a vertex is not in
+    the group), or None without the group."""
+    group = skin.vertex_groups.get(VOLUME_BLEND_GROUP)
+    if group is None:
+        return None
+    weight = np.zeros(len(skin.data.vertices))
+    index = group.index
+    for v in skin.data.vertices:
+        for g in v.groups:
+            if g.group == index:
+                weight[v.index] = g.weight
+    return 1.0 - weight
+
+
+def add_volume_blend(skin, arm, share):
+    """Volume blend on a bound mesh: the first Armature modifier linear, then right after it a second one on the
+    same armature with Preserve Volume and Multi Modifier over the share group (weight 1 - s), which Blender mixes as
+    (1 - s) * linear + s * dual quaternions per vertex. Returns the second modifier."""
+    first = armature_modifier(skin, arm)
+    write_share_group(skin, share)
+    mod = volume_blend_modifier(skin, arm)
+    if mod is None:
+        mod = skin.modifiers.new(VOLUME_BLEND_MODIFIER, 'ARMATURE')
+    mod.object = arm
+    mod.use_vertex_groups, mod.use_bone_envelopes = True, False
+    mod.use_deform_preserve_volume = True
+    mod.use_multi_modifier = True
+    mod.vertex_group = VOLUME_BLEND_GROUP
+    mod.invert_vertex_group = False
+    mod.show_viewport, mod.show_render = bool(first.show_viewport), bool(first.show_render)
+    first.use_deform_preserve_volume = False
+    _move_modifier(skin, mod, list(skin.modifiers).index(first) + 1)
+    return mod
+
+
+def remove_volume_blend(skin, arm):
+    """Unbind: remove the volume blend's modifier and share group (the first modifier's Preserve Volume is
+    restored by the caller from the bind record)."""
+    mod = volume_blend_modifier(skin, arm)
+    if mod is not None:
+        skin.modifiers.remove(mod)
+    group = skin.vertex_groups.get(VOLUME_BLEND_GROUP)
+    if group is not None:
+        skin.vertex_groups.remove(group)
 
 
 def bind(context, skins, arm):
     """Create the muscle joints as deform bones, write the combined weights to every mesh of the character
     (`skins`: computed once on the meshes welded into one surface, then split back per mesh, so vertices
-    where pieces meet get the same weights), keep/add the Armature modifier of each, write the bind record.
+    where pieces meet get the same weights), keep/add the Armature modifier of each (and, with the rig's Volume
+    Blend, the share group and the second modifier: add_volume_blend), write the bind record.
     Returns the number of joints; the caller then poses them (live.update_armature(arm, force=True))."""
     core = core_loader.core()
     state = rig_state(arm)
@@ -150,6 +256,9 @@ def bind(context, skins, arm):
     if joints.shape[0] != character.num_vertices or weights.shape[0] != character.num_vertices:
         raise ValueError(f"Bind: {joints.shape[0]} weight rows for the {character.num_vertices} vertices of "
                          f"'{arm.name}''s character")
+    # Volume blend: the shares from the skeleton weights of the combined character (before anything changes)
+    volume_blend = bool(state.volume_blend) and state.deformer != 'ANCHORED'
+    share = np.asarray(core.compute_dqs_share(character), dtype=np.float64) if volume_blend else None
     names = list(character.bone_names)
     for skin in skins:
         backup_weights(skin)
@@ -174,6 +283,9 @@ def bind(context, skins, arm):
         else:
             preserve_volume_before[skin.name] = bool(mod.use_deform_preserve_volume)
         mod.use_deform_preserve_volume = state.preserve_volume
+    if volume_blend:  # the shares, split back per mesh
+        for skin, mesh_share in zip(skins, combined.split(share)):
+            add_volume_blend(skin, arm, np.asarray(mesh_share).ravel())
     core_skin_was = {}
     if state.deformer == 'ANCHORED':  # the core moves these meshes (live.py); their Armature modifiers rest
         for skin in skins:
@@ -191,7 +303,7 @@ def bind(context, skins, arm):
         "joint_names": list(rig.joint_names), "muscles": core.muscles_to_json(muscles),
         "surfaces": [surfaces.get(m.name, "") for m in muscles],
         "deformer": "anchored" if state.deformer == 'ANCHORED' else "joints", "core_skin_was": core_skin_was,
-        "stuffing": stuffing,
+        "stuffing": stuffing, "volume_blend": volume_blend,
     }
     write_bind_record(arm, record)
     set_rig_skins(arm, skins)
@@ -210,7 +322,7 @@ def apply_preserve_volume(arm):
     count = 0
     for skin in rig_skins(arm):
         mod = armature_modifier(skin, arm)
-        if mod is not None:
+        if mod is not None and volume_blend_modifier(skin, arm) is None:  # a volume blend keeps its first linear
             mod.use_deform_preserve_volume = state.preserve_volume
             count += 1
     return count
@@ -235,6 +347,11 @@ def skinner_for(skin, arm, live_rig, rest, joints, weights):
     Volume): rest (#V by 3, armature space), joints/weights over the live rig's bones + muscle joints."""
     core = core_loader.core()
     count = len(live_rig.bone_names) + len(live_rig.joint_names)
+    share = read_share_group(skin) if volume_blend_modifier(skin, arm) is not None else None
+    if share is not None:  # the volume blend: Blender's two modifiers, the share as Blender reads it
+        return core.Skinner(rest, joints, weights, count, dqs_share=share,
+                            rest_matrices=core.combined_rest_matrices(live_rig.character, live_rig.rig),
+                            dq_scale=dq_scale())
     if preserve_volume_of(skin, arm):
         return core.Skinner(rest, joints, weights, count, preserve_volume=True,
                             rest_matrices=core.combined_rest_matrices(live_rig.character, live_rig.rig),
@@ -255,6 +372,9 @@ def mute_armature_for_cache(skin, arm):
     if MUTED_KEY not in skin:
         skin[MUTED_KEY] = {"show_viewport": bool(mod.show_viewport), "show_render": bool(mod.show_render)}
     mod.show_viewport = mod.show_render = False
+    blend = volume_blend_modifier(skin, arm)
+    if blend is not None:  # without the first, the second would deform the cache again
+        blend.show_viewport = blend.show_render = False
 
 
 def remove_caches(skin, arm):
@@ -264,10 +384,10 @@ def remove_caches(skin, arm):
     was = skin.get(MUTED_KEY)
     if was is None:
         return
-    mod = armature_modifier(skin, arm)
-    if mod is not None:
-        mod.show_viewport = bool(was.get("show_viewport", True))
-        mod.show_render = bool(was.get("show_render", True))
+    for mod in (armature_modifier(skin, arm), volume_blend_modifier(skin, arm)):
+        if mod is not None:
+            mod.show_viewport = bool(was.get("show_viewport", True))
+            mod.show_render = bool(was.get("show_render", True))
     del skin[MUTED_KEY]
 
 
@@ -306,6 +426,7 @@ def unbind(arm):
     before = before if isinstance(before, dict) else {}
     for skin in skins:
         remove_caches(skin, arm)
+        remove_volume_blend(skin, arm)
     was = record.get("core_skin_was")
     was = was if isinstance(was, dict) else {}
     for skin in skins:

@@ -114,8 +114,8 @@ def local_rotation(arm_eval, bone_name):
 
 def deform_setup(skin, arm, depsgraph):
     """The core's skinner for what Blender's Armature modifier does to `skin` now: every deform bone of the
-    armature (muscle joints of a bound rig too) with the mesh's vertex groups, the modifier's Preserve Volume,
-    this Blender's dual-quaternion scale. Returns (skinner, #B by 4 by 4 transforms in armature space,
+    armature (muscle joints of a bound rig too) with the mesh's vertex groups, the modifier's Preserve Volume (or
+    the volume blend's share group with its second modifier), this Blender's dual-quaternion scale. Returns (skinner, #B by 4 by 4 transforms in armature space,
     mesh->armature 4x4)."""
     core = core_loader.core()
     mod = require_armature_modifier(skin, arm)
@@ -133,7 +133,11 @@ def deform_setup(skin, arm, depsgraph):
     pose = np.array([np.array(arm_eval.pose.bones[n].matrix, dtype=np.float64) for n in names])
     transforms = pose @ np.linalg.inv(rest_bones)
     rest = blender_io.mesh_vertices(skin.data) @ to_arm[:3, :3].T + to_arm[:3, 3]
-    if mod.use_deform_preserve_volume:
+    share = binding.read_share_group(skin) if binding.volume_blend_modifier(skin, arm) is not None else None
+    if share is not None:  # the volume blend (the first modifier linear, the second mixed in by the share group)
+        skinner = core.Skinner(rest, joints, weights, len(names), dqs_share=share, rest_matrices=rest_bones,
+                               dq_scale=binding.dq_scale())
+    elif mod.use_deform_preserve_volume:
         skinner = core.Skinner(rest, joints, weights, len(names), preserve_volume=True, rest_matrices=rest_bones,
                                dq_scale=binding.dq_scale())
     else:
@@ -146,11 +150,12 @@ class _Modifiers:
     and back as they were."""
 
     def __init__(self, skin, keep=None):
+        keep = [] if keep is None else list(keep) if isinstance(keep, (list, tuple)) else [keep]
         self.skin, self.keep, self.saved = skin, keep, []
 
     def __enter__(self):
         for m in self.skin.modifiers:
-            if m != self.keep and m.show_viewport:
+            if m not in self.keep and m.show_viewport:
                 self.saved.append(m)
                 m.show_viewport = False
         return self
@@ -162,8 +167,8 @@ class _Modifiers:
 
 
 def evaluated(skin, context, keep=None):
-    """#V by 3 float64 evaluated positions (mesh space) with only `keep` of the modifiers on (None: shape keys
-    only: what the Armature modifier receives)."""
+    """#V by 3 float64 evaluated positions (mesh space) with only `keep` (a modifier or a list) of the modifiers on
+    (None: shape keys only: what the Armature modifier receives)."""
     with _Modifiers(skin, keep):
         context.view_layer.update()
         points = blender_io.evaluated_vertices(skin, depsgraph=context.evaluated_depsgraph_get())
@@ -352,7 +357,7 @@ def sculpt_target(context, skin, arm, source_key="", source_object=None):
     saved = (kb.value, kb.mute)
     kb.value, kb.mute = 1.0, False
     try:
-        target = evaluated(skin, context, keep=binding.armature_modifier(skin, arm))
+        target = evaluated(skin, context, keep=binding.armature_modifiers(skin, arm))
     finally:
         kb.value, kb.mute = saved
     return target
@@ -381,7 +386,7 @@ def add_corrective(context, skin, arm, bone_name, name="", falloff=DEFAULT_FALLO
         raise ValueError(f"'{skin.name}' already has a shape key '{name}': pick another name")
     depsgraph = context.evaluated_depsgraph_get()
     target = sculpt_target(context, skin, arm, source_key, source_object)
-    before = evaluated(skin, context, keep=binding.armature_modifier(skin, arm))  # the posed skin as it is
+    before = evaluated(skin, context, keep=binding.armature_modifiers(skin, arm))  # the posed skin as it is
     rotation = local_rotation(arm.evaluated_get(depsgraph), bone_name)
     entry = {"name": name, "bone": bone_name, "direction": list(core.bone_direction(rotation)), "falloff": falloff}
     new_entries = entries + [entry]

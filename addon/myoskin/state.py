@@ -28,6 +28,9 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
                                           bulge change is applied to the bound rig at once)
         .live                             live update on (off: the baked Action plays)
         .preserve_volume                  Bind sets the Armature modifiers' use_deform_preserve_volume to it
+        .volume_blend                     Bind adds the volume blend (share group myoskin_dqs_share, a second
+                                          Armature modifier with Preserve Volume + Multi Modifier after the first,
+                                          which stays linear); Unbind removes both
         .bind_text                        Text datablock "<armature>.bind.json", the bind record: skeleton
                                           (names, parents, heads, tails, rest), the bound muscles' json,
                                           joint names, surface object names (live update rebuilds from it)
@@ -190,6 +193,14 @@ class MyoskinRigState(bpy.types.PropertyGroup):
                     "the muscle joints together, so bent joints keep their volume; Bind sets it on the "
                     "character's Armature modifiers (at once when bound) and Bake PC2 computes the same mode "
                     "in the core. Off: linear blending, as the paper")
+    volume_blend: BoolProperty(
+        name="Volume Blend", default=True,
+        description="Mix the linear and the dual-quaternion skin per vertex so bent joints keep their volume: "
+                    "Preserve Volume's dual quaternions where they keep it (elbows, shoulders), less where they "
+                    "over-inflate (hips, some knees). Bind writes the share as the vertex group "
+                    "'myoskin_dqs_share' and adds a second Armature modifier (Preserve Volume, Multi Modifier) "
+                    "after the first, which turns linear; Unbind removes both. Overrides Preserve Volume; takes "
+                    "effect at the next Bind (Muscle Joints deformer)")
     deformer: EnumProperty(
         name="Deformer", default='JOINTS',
         items=(('JOINTS', "Muscle Joints", "The paper's Equation 3: the muscle joints are deform bones blended with "

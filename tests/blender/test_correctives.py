@@ -41,6 +41,7 @@ def new_arm(bound=False):
     if bound:
         assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
         arm.myoskin.preserve_volume = True
+        arm.myoskin.volume_blend = False  # Preserve Volume alone (the volume blend: test_preserve_volume)
         assert bpy.ops.myoskin.bind() == {'FINISHED'}
     bpy.context.view_layer.objects.active = skin
     return arm, skin

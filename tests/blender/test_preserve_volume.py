@@ -3,7 +3,9 @@
 use_deform_preserve_volume on, and Blender's dual quaternion skin then equals the core's preserve-volume
 skinner (1e-5 of the character's size) with the muscle joints bulging (scaled joint bones), a scaled skeleton
 bone, elbow flexion and shoulder abduction; the rest pose stays exact (1e-6 of the size); the setting follows
-on a bound rig, Unbind gives the modifier its own setting back, and Bake PC2 computes the same mode.
+on a bound rig, Unbind gives the modifier its own setting back, and Bake PC2 computes the same mode. The volume
+blend (Volume Blend: the share group and a second Armature modifier with Multi Modifier) equals the core's too, Bake
+PC2 computes it and Unbind restores the character exactly.
 
     BLENDER_USER_SCRIPTS=build/blender_scripts MYOSKIN_SOURCE_DIR=$PWD \
     blender -b --factory-startup --python-exit-code 1 --addons myoskin --python tests/blender/test_preserve_volume.py
@@ -30,21 +32,22 @@ def armature_modifier(skin, arm):
     return next(m for m in skin.modifiers if m.type == 'ARMATURE' and m.object == arm)
 
 
-def bound_arm(preserve_volume=True, seed=1):
-    """The synthetic arm, extracted, Preserve Volume set, bound; returns (arm, skin, state)."""
+def bound_arm(preserve_volume=True, seed=1, volume_blend=False):
+    """The synthetic arm, extracted, Preserve Volume (and the volume blend) set, bound; returns (arm, skin, state)."""
     bpy.ops.wm.read_homefile(use_empty=True)
     assert bpy.ops.myoskin.add_synthetic_arm(seed=seed) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     arm = skin.parent
     assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
     arm.myoskin.preserve_volume = preserve_volume
+    arm.myoskin.volume_blend = volume_blend
     assert bpy.ops.myoskin.bind() == {'FINISHED'}
     return arm, skin, arm.myoskin
 
 
-def core_skin(arm, skin, preserve_volume):
-    """The core's skin for the current evaluated pose (mesh object space), in the given mode; also the
-    largest |scale - 1| of a muscle joint in this pose."""
+def core_skin(arm, skin, preserve_volume, share=None):
+    """The core's skin for the current evaluated pose (mesh object space), in the given mode (`share`: the volume
+    blend with these #V dual-quaternion shares); also the largest |scale - 1| of a muscle joint in this pose."""
     live, rig_io, io = module("live"), module("rig_io"), module("blender_io")
     rig = live.live_rig(arm)
     pose = live.evaluated_pose(arm, rig, bpy.context.evaluated_depsgraph_get())
@@ -54,6 +57,10 @@ def core_skin(arm, skin, preserve_volume):
                                  joint_matrices @ np.linalg.inv(np.asarray(rig.rig.bind_matrices))])
     rest = io.mesh_vertices(skin.data)
     bulge = float(np.abs(np.linalg.norm(joint_matrices[:, :3, :3], axis=1) - 1.0).max())
+    if share is not None:
+        return core().skin(rest, joints, weights, transforms, dqs_share=share,
+                           rest_matrices=core().combined_rest_matrices(rig.character, rig.rig),
+                           dq_scale=module("binding").dq_scale()), bulge
     if not preserve_volume:
         return core().skin(rest, joints, weights, transforms), bulge
     return core().skin(rest, joints, weights, transforms, preserve_volume=True,
@@ -123,6 +130,7 @@ def test_the_setting_follows_on_a_bound_rig_and_unbind_restores_the_modifier():
     assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
     state = arm.myoskin
     state.preserve_volume = True
+    state.volume_blend = False  # Preserve Volume alone
     assert bpy.ops.myoskin.bind() == {'FINISHED'}
     assert armature_modifier(skin, arm).use_deform_preserve_volume
     set_pose(arm, {"forearm": (100.0, 0.0, 0.0)})
@@ -159,6 +167,94 @@ def test_pc2_bake_uses_the_same_mode_and_equals_blender():
     print(f"  PC2 (preserve volume) vs Blender: {max(errors):.2e} of the size")
     assert max(errors) < TOLERANCE, errors
     assert np.abs(frames[2] - linear).max() / size > 1e-3  # the bake really is in the preserve-volume mode
+
+
+def character_snapshot(skin):
+    """What Unbind must give back: the modifier stack (type, object, Preserve Volume, Multi Modifier, group) and
+    every vertex group with its members' weights."""
+    mods = [(m.type, getattr(m, "object", None) and m.object.name, getattr(m, "use_deform_preserve_volume", None),
+             getattr(m, "use_multi_modifier", None), getattr(m, "vertex_group", None)) for m in skin.modifiers]
+    groups = {g.name: {} for g in skin.vertex_groups}
+    names = [g.name for g in skin.vertex_groups]
+    for v in skin.data.vertices:
+        for g in v.groups:
+            groups[names[g.group]][v.index] = g.weight
+    return mods, names, groups
+
+
+def test_volume_blend_bind_writes_the_group_and_a_second_modifier_and_blender_equals_the_core():
+    """Volume Blend: Bind writes the share group and a second Armature modifier (Preserve Volume, Multi Modifier)
+    right after the first, which turns linear; Blender's skin then equals the core's volume blend (1e-5 of the size)
+    with Bind's shares and with random shares written into the group (every mix in [0, 1]); rest pose exact."""
+    binding = module("binding")
+    arm, skin, state = bound_arm(preserve_volume=True, volume_blend=True)
+    mods = [m for m in skin.modifiers if m.type == 'ARMATURE' and m.object == arm]
+    assert len(mods) == 2, [m.name for m in skin.modifiers]
+    first, second = mods
+    assert list(skin.modifiers).index(second) == list(skin.modifiers).index(first) + 1
+    assert not first.use_deform_preserve_volume and second.use_deform_preserve_volume
+    assert second.use_multi_modifier and second.vertex_group == binding.VOLUME_BLEND_GROUP
+    share = binding.read_share_group(skin)
+    assert share is not None and len(share) == len(skin.data.vertices)
+    assert share.min() >= 0.0 and share.max() <= 1.0 and share.max() > 0.0
+    size = size_of(skin)
+    rest = module("blender_io").mesh_vertices(skin.data)
+    rest_err = float(np.abs(evaluated(skin) - rest).max()) / size
+    assert rest_err < 1e-6, rest_err
+    rng = np.random.default_rng(7)
+    errors = []
+    for label in ("Bind's shares", "random shares"):
+        if label == "random shares":
+            binding.write_share_group(skin, rng.uniform(0.0, 1.0, len(share)))
+            share = binding.read_share_group(skin)
+            assert 0.2 < share.mean() < 0.8
+        for name, rotations, scales in POSES:
+            set_pose(arm, rotations, scales)
+            blender = evaluated(skin)
+            expected, _ = core_skin(arm, skin, True, share=share)
+            linear, _ = core_skin(arm, skin, False)
+            dq, _ = core_skin(arm, skin, True)
+            err = float(np.abs(blender - expected).max()) / size
+            print(f"  {label}, {name}: Blender volume blend vs core {err:.2e} of the size (vs linear "
+                  f"{np.abs(blender - linear).max() / size:.2e}, vs DQS {np.abs(blender - dq).max() / size:.2e})")
+            errors.append(err)
+            if label == "random shares":  # a real mix: neither mode alone
+                assert np.abs(blender - linear).max() / size > 1e-4 and np.abs(blender - dq).max() / size > 1e-4
+    print(f"  rest pose error {rest_err:.2e}; max Blender vs core, volume blend {max(errors):.2e} "
+          f"(Blender {bpy.app.version_string})")
+    assert max(errors) < TOLERANCE, errors
+
+
+def test_volume_blend_unbind_restores_the_character_exactly_and_pc2_equals_blender():
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=2) == {'FINISHED'}
+    skin = bpy.context.view_layer.objects.active
+    arm = skin.parent
+    before = character_snapshot(skin)
+    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
+    arm.myoskin.volume_blend = True
+    assert bpy.ops.myoskin.bind() == {'FINISHED'}
+    binding = module("binding")
+    assert binding.volume_blend_modifier(skin, arm) is not None
+    binding.write_share_group(skin, np.linspace(0.0, 1.0, len(skin.data.vertices)))  # every mix, as Bake reads it
+    pb = arm.pose.bones["forearm"]
+    pb.rotation_mode = 'XYZ'
+    for frame, degrees in ((1, 0.0), (3, 120.0)):
+        pb.rotation_euler = (np.radians(degrees), 0.0, 0.0)
+        pb.keyframe_insert("rotation_euler", frame=frame)
+    path = os.path.join(TMP, "blend.pc2")
+    assert bpy.ops.myoskin.bake_pc2(filepath=path, frame_start=1, frame_end=3) == {'FINISHED'}
+    frames = core().read_pc2(path)["frames"]
+    size = size_of(skin)
+    errors = []
+    for k, frame in enumerate((1, 2, 3)):
+        bpy.context.scene.frame_set(frame)
+        errors.append(float(np.abs(module("blender_io").evaluated_vertices(skin) - frames[k]).max()) / size)
+    print(f"  PC2 (volume blend) vs Blender: {max(errors):.2e} of the size")
+    assert max(errors) < TOLERANCE, errors
+    assert bpy.ops.myoskin.unbind() == {'FINISHED'}
+    assert binding.volume_blend_modifier(skin, arm) is None
+    assert character_snapshot(skin) == before
 
 
 def test_a_rig_bound_before_the_default_changed_keeps_its_linear_mode_on_load():

@@ -141,9 +141,10 @@ TEST(VolumeBlend, SharesInBetweenMixLikeBlendersMultiModifierAndAffineMapsAgree)
   skinner.vertexTransforms(s.transforms, affine);
   double worst = 0.0, worstAffine = 0.0;
   for (int v = 0; v < nv; ++v) {
-    const float prev = 1.0f - static_cast<float>(share[v]), own = 1.0f - prev;
+    // Blender 3.4.1's Multi Modifier: the group weight g = 1 - s is the linear (previous) result's share
+    const float g = static_cast<float>(1.0 - share[v]), dqWeight = 1.0f - g, linearWeight = 1.0f - dqWeight;
     for (int c = 0; c < 3; ++c) {
-      const float expect = prev * linear(v, c) + own * dq(v, c);
+      const float expect = dqWeight * dq(v, c) + linearWeight * linear(v, c);
       worst = std::max(worst, static_cast<double>(std::abs(expect - mixed(v, c))));
       double a = affine(v, 4 * c + 3);
       for (int k = 0; k < 3; ++k) a += affine(v, 4 * c + k) * s.rest(v, k);

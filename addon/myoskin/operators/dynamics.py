@@ -57,7 +57,7 @@ class MYOSKIN_OT_capture_sculpt(_MuscleOperator, bpy.types.Operator):
             sculpted = correctives.sculpt_target(context, skin, arm, source_key=self.source_key)
             kb = skin.data.shape_keys.key_blocks[self.source_key]
             kb.value = 0.0  # captured: from now on the deltas carry it (the bake's shape key mix leaves it out)
-            offset = sculpted - correctives.evaluated(skin, context, keep=binding.armature_modifier(skin, arm))
+            offset = sculpted - correctives.evaluated(skin, context, keep=binding.armature_modifiers(skin, arm))
             reference = simulated_frame(context, skin, arm, frame)
             sculpted = reference + offset
             source = f"shape key {self.source_key}"

@@ -217,7 +217,10 @@ class MYOSKIN_PT_bind(_WorkflowStep, bpy.types.Panel):
         if state.deformer == 'ANCHORED':
             layout.operator("myoskin.add_stuffing", icon='SPHERE')
         layout.prop(state, "max_influences")
-        layout.prop(state, "preserve_volume")
+        layout.prop(state, "volume_blend")
+        row = layout.row()
+        row.active = not state.volume_blend
+        row.prop(state, "preserve_volume")
         if state.bound:
             skins = rig_skins(arm)
             layout.label(text=f"Bound to {', '.join(o.name for o in skins) if skins else '?'}", icon='CHECKMARK')

@@ -133,8 +133,9 @@ struct SkinnerOptions {
   // quaternion with preserveVolume, as above). When set, each vertex is (1 - s) * linear + s * dual quaternion
   // (preserveVolume is then ignored; dualQuatScale and jointRest still shape the dual-quaternion part), computed in
   // float32 as Blender's second Armature modifier with Preserve Volume and Multi Modifier mixes its result with the
-  // first (linear) one through the vertex group of weight s: s = 0 is the linear result, s = 1 the dual-quaternion
-  // one, bit for bit.
+  // first (linear) one through its vertex group, whose weight g = 1 - s is the LINEAR result's share (measured on
+  // Blender 3.4.1; a vertex not in the group takes the dual-quaternion result): s = 0 is the linear result, s = 1 the
+  // dual-quaternion one, bit for bit.
   std::vector<double> dqsShare;
 };
 

@@ -5,7 +5,7 @@
 // skin the skeleton blends over a wide band (hips, some knees), over-inflate it. The share of each real joint is the
 // one that keeps its band's volume at a reference bend; a vertex takes the shares of the joints its skeleton weights
 // blend across. Blender evaluates the same result with two Armature modifiers (the second with Preserve Volume and
-// Multi Modifier, the share as its vertex group), so Blender = core stays exact.
+// Multi Modifier, 1 - the share as its vertex group), so Blender = core stays exact.
 #pragma once
 #include <vector>
 
