@@ -37,7 +37,8 @@ struct VolumeBlendOptions {
   // A vertex belongs to a joint's blend when b = 2 min(share inside the child's subtree, share outside) >= minBlend
   // (b = 1 at an even blend across the joint, 0 on skin one side moves alone).
   double minBlend = 0.05;
-  // The body's up axis; zero = automatic: +Y when the skin is taller along Y than along Z (glTF), else +Z (Blender).
+  // The body's up axis; zero = automatic: against the sum of the limb bones (legs point down; arms sideways or down),
+  // in the plane across X; without limbs +Y when the skin is taller along Y than along Z (glTF), else +Z (Blender).
   // The character's left is +X in both conventions, so facing = X x up (glTF +Z, Blender -Y).
   Vec3 up = Vec3::Zero();
 };

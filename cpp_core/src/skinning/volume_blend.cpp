@@ -158,20 +158,29 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
   for (int v = 0; v < nv; ++v)
     for (int k = 0; k < w.influences(); ++k)
       if (w.joints(v, k) >= 0) total[v] += w.weights(v, k);
-  // Body frame: +X the character's left (glTF and Blender alike), up the taller of +Y (glTF) and +Z (Blender)
-  // unless given, facing = left x up (glTF +Z, Blender -Y).
-  const Vec3 extent = skin.vertices.colwise().maxCoeff() - skin.vertices.colwise().minCoeff();
-  const Vec3 up = options.up.squaredNorm() > 0.0 ? Vec3(options.up.normalized())
-                                                   : (extent.y() >= extent.z() ? Vec3::UnitY() : Vec3::UnitZ());
-  const Vec3 left = (Vec3::UnitX() - Vec3::UnitX().dot(up) * up).normalized();
-  const Vec3 facing = left.cross(up);
+  // Body frame: +X the character's left (glTF and Blender alike); up unless given: against the limbs (the sum of the
+  // limb bones, legs down, arms sideways or down), else the taller of +Y (glTF) and +Z (Blender); facing = left x up
+  // (glTF +Z, Blender -Y).
   Character body;
   body.mesh = skin;
   body.skeleton = skeleton;
   body.weights = w;
   const Skeleton joined = weightedSkeleton(body);  // tails at the continuing child's head (importers guess them)
+  const std::vector<BoneRole> roles = characterBoneRoles(body);
   const std::vector<char> twist = twistSplits(skeleton, w);
-  const double limbRadius = bodyLimbRadius(body, characterBoneRoles(body));
+  const double limbRadius = bodyLimbRadius(body, roles);
+  Vec3 limbs = Vec3::Zero();
+  for (int b = 0; b < nb; ++b)
+    if (roles[b] == BoneRole::Limb) limbs += joined.bones[b].tail - joined.bones[b].head;
+  limbs.x() = 0.0;
+  const Vec3 extent = skin.vertices.colwise().maxCoeff() - skin.vertices.colwise().minCoeff();
+  Vec3 up = extent.y() >= extent.z() ? Vec3::UnitY() : Vec3::UnitZ();
+  if (options.up.squaredNorm() > 0.0)
+    up = options.up.normalized();
+  else if (limbs.norm() > 1e-9)
+    up = -limbs.normalized();
+  const Vec3 left = (Vec3::UnitX() - Vec3::UnitX().dot(up) * up).normalized();
+  const Vec3 facing = left.cross(up);
   auto direction = [&](int b) { return Vec3((joined.bones[b].tail - joined.bones[b].head).normalized()); };
   std::vector<char> inSubtree(nb);
   Eigen::VectorXd blend(nv);
