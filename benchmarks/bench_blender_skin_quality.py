@@ -5,8 +5,9 @@ the measures). Per character and joint, for
 
     LBS       the character's own Armature modifier on its skeleton weights, Preserve Volume off
     DQS       the same modifier with Preserve Volume on (Blender's dual quaternions)
-    Myoskin   the character extracted and bound by the add-on's operators at their defaults (Preserve Volume on,
-              the muscle joints' weights), posed live by the add-on's handlers
+    Myoskin   the character extracted and bound by the add-on's operators at their defaults (Volume Blend on: the
+              linear and the dual-quaternion skin mixed per vertex by two Armature modifiers; the muscle joints'
+              weights), posed live by the add-on's handlers
 
 it prints the band's volume change (skin within 1.5 limb radii of the joint, cone volume from the joint), the
 largest outward move of the upper segment's skin over the LBS skin (along the LBS normals) and the band's
@@ -257,6 +258,10 @@ def measure_character(core, label, path, joints):
     combined_rest = core.combined_rest_matrices(rig.character, rig.rig)
     bind_inverse = np.linalg.inv(np.asarray(rig.rig.bind_matrices))
     pv = all(m.use_deform_preserve_volume for m in mods)
+    binding = addon_module("binding")
+    share = None  # the volume blend (the rig's default): the share groups Bind wrote, welded like the weights
+    if all(binding.volume_blend_modifier(m, arm) is not None for m in combined.meshes):
+        share = np.concatenate([binding.read_share_group(m) for m in combined.meshes])[first]
     pose_armature(arm, character, bone_rest)
     rest_error = float(np.abs(evaluated(combined, arm, first) - rest).max()) / size
 
@@ -272,8 +277,12 @@ def measure_character(core, label, path, joints):
         joint_matrices = np.asarray(rig.rig.evaluate(evaluated_pose)["joint_matrices"])
         transforms = np.concatenate([core.skeleton_transforms(character, evaluated_pose),
                                      joint_matrices @ bind_inverse])
-        ours["Myoskin"] = np.asarray(core.skin(rest, hj, hw, transforms, preserve_volume=pv,
-                                               rest_matrices=combined_rest, dq_scale=dq_scale), float)
+        if share is not None:
+            ours["Myoskin"] = np.asarray(core.skin(rest, hj, hw, transforms, dqs_share=share,
+                                                   rest_matrices=combined_rest, dq_scale=dq_scale), float)
+        else:
+            ours["Myoskin"] = np.asarray(core.skin(rest, hj, hw, transforms, preserve_volume=pv,
+                                                   rest_matrices=combined_rest, dq_scale=dq_scale), float)
         b = names.index(bone)
         on_upper = np.isin(dominant, [names.index(u) for u in upper if u in names])
         mine = figures(core, rest, tris, blender, heads[b], pose[b][:3, 3], radius, on_upper)
@@ -287,8 +296,8 @@ def measure_character(core, label, path, joints):
     pose_armature(arm, character, bone_rest)
     summary = (f"{label}: {len(rest):,} vertices ({len(meshes)} mesh{'es' if len(meshes) > 1 else ''}), "
                f"{len(state.muscles)} muscles, {len(rig.joint_names)} muscle joints, facing {np.round(facing, 3).tolist()} "
-               f"in the armature's space, Myoskin Preserve Volume "
-               f"{'on' if pv else 'off'}, limb radius {report['limb_radius'] / scale:.4g}; bound rest pose "
+               f"in the armature's space, Myoskin "
+               f"{'volume blend' if share is not None else 'Preserve Volume on' if pv else 'linear'}, limb radius {report['limb_radius'] / scale:.4g}; bound rest pose "
                f"{rest_error:.1e} of the size; {time.perf_counter() - start:.1f} s")
     return rows, report["limb_radius"] / scale, summary
 

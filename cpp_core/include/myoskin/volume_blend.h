@@ -39,7 +39,8 @@ struct VolumeBlendOptions {
   double minBlend = 0.05;
   // The body's up axis; zero = automatic: against the sum of the limb bones (legs point down; arms sideways or down),
   // in the plane across X; without limbs +Y when the skin is taller along Y than along Z (glTF), else +Z (Blender).
-  // The character's left is +X in both conventions, so facing = X x up (glTF +Z, Blender -Y).
+  // The left-right axis is X in both conventions; facing = left x up, turned where the feet (bones hanging from a
+  // downward limb bone and lying along the ground) point (glTF +Z, Blender -Y; an armature turned in its object too).
   Vec3 up = Vec3::Zero();
 };
 

@@ -158,9 +158,9 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
   for (int v = 0; v < nv; ++v)
     for (int k = 0; k < w.influences(); ++k)
       if (w.joints(v, k) >= 0) total[v] += w.weights(v, k);
-  // Body frame: +X the character's left (glTF and Blender alike); up unless given: against the limbs (the sum of the
-  // limb bones, legs down, arms sideways or down), else the taller of +Y (glTF) and +Z (Blender); facing = left x up
-  // (glTF +Z, Blender -Y).
+  // Body frame: up unless given: against the limbs (the sum of the limb bones, legs down, arms sideways or down), else
+  // the taller of +Y (glTF) and +Z (Blender); the left-right axis X (the mirror plane X = 0 of glTF and Blender alike);
+  // facing = left x up, its sign where the feet point (glTF +Z, Blender -Y; +X is then the left).
   Character body;
   body.mesh = skin;
   body.skeleton = skeleton;
@@ -179,7 +179,18 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
     up = options.up.normalized();
   else if (limbs.norm() > 1e-9)
     up = -limbs.normalized();
-  const Vec3 left = (Vec3::UnitX() - Vec3::UnitX().dot(up) * up).normalized();
+  Vec3 left = (Vec3::UnitX() - Vec3::UnitX().dot(up) * up).normalized();
+  // The feet point forward: a bone hanging from a downward limb bone that itself points along the ground (a foot)
+  // votes for the facing's sign (an armature rotated in its object, as Blender's glTF import leaves some, faces -Z).
+  double feet = 0.0;
+  for (int b = 0; b < nb; ++b) {
+    const int p = skeleton.bones[b].parent;
+    if (p < 0 || roles[p] != BoneRole::Limb) continue;
+    const Vec3 db = joined.bones[b].tail - joined.bones[b].head, dp = joined.bones[p].tail - joined.bones[p].head;
+    if (db.norm() > 0.0 && dp.norm() > 0.0 && dp.normalized().dot(up) < -0.5 && std::abs(db.normalized().dot(up)) < 0.7)
+      feet += db.normalized().dot(left.cross(up));
+  }
+  if (feet < 0.0) left = -left;
   const Vec3 facing = left.cross(up);
   auto direction = [&](int b) { return Vec3((joined.bones[b].tail - joined.bones[b].head).normalized()); };
   std::vector<char> inSubtree(nb);
