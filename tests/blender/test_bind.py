@@ -80,17 +80,24 @@ def core_skin(arm, skin, state):
 # Bind
 # ------------------------------------------------------------------------------------------------
 
+def influence_counts(skin):
+    """Bones and muscle joints per vertex (the volume blend's share group is no influence)."""
+    share = skin.vertex_groups.get(module("binding").VOLUME_BLEND_GROUP)
+    skip = share.index if share is not None else -1
+    return np.array([sum(g.weight > 0 for g in v.groups if g.group != skip) for v in skin.data.vertices])
+
+
 def test_max_influences_caps_every_vertex_and_blender_still_equals_the_core():
     arm, skin, state, _ = bound_arm()
-    counts = np.array([sum(g.weight > 0 for g in v.groups) for v in skin.data.vertices])
+    counts = influence_counts(skin)
     assert state.max_influences == 8 and counts.max() > 4, counts.max()  # the arm reaches 7
     state.max_influences = 4
     assert bpy.ops.myoskin.bind() == {'FINISHED'}
-    counts = np.array([sum(g.weight > 0 for g in v.groups) for v in skin.data.vertices])
+    counts = influence_counts(skin)
     assert counts.max() == 4, counts.max()
     state.max_influences = 2
     assert bpy.ops.myoskin.bind() == {'FINISHED'}
-    counts = np.array([sum(g.weight > 0 for g in v.groups) for v in skin.data.vertices])
+    counts = influence_counts(skin)
     assert counts.max() == 2, counts.max()
     names = joint_names(state)
     assert sum(1 for v in skin.data.vertices for g in v.groups if skin.vertex_groups[g.group].name in names) > 100
@@ -114,8 +121,12 @@ def test_bind_creates_joint_bones_weights_and_keeps_the_modifier():
         assert n in skin.vertex_groups
     weights = weights_of(skin)
     assert sum(len(weights[n]) for n in names) > 100  # muscle joints carry real weight
+    binding = module("binding")
     mods = [m for m in skin.modifiers if m.type == 'ARMATURE']
-    assert len(mods) == 1 and mods[0].object == arm
+    # the character's own modifier, then (Volume Blend, the default) the blend's second one
+    assert len(mods) == 2 and mods[0].object == arm and not binding.is_volume_blend_modifier(mods[0])
+    assert binding.is_volume_blend_modifier(mods[1]) and mods[1].object == arm
+    weights.pop(binding.VOLUME_BLEND_GROUP)  # no influence: 1 - each vertex's dual-quaternion share
     # every vertex's weights still sum to 1 (skeleton + muscles)
     total = np.zeros(len(skin.data.vertices))
     for group in weights.values():
