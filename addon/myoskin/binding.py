@@ -139,7 +139,7 @@ def armature_modifier(skin, arm):
 def volume_blend_modifier(skin, arm):
     """The volume blend's second Armature modifier of `arm` on the mesh, or None."""
     for mod in skin.modifiers:
-        if mod.object == arm and is_volume_blend_modifier(mod):
+        if is_volume_blend_modifier(mod) and mod.object == arm:
             return mod
     return None
 

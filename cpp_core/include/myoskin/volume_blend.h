@@ -22,8 +22,9 @@ namespace myoskin {
 
 struct VolumeBlendOptions {
   // Reference flexion of each joint, in degrees: the joint's child subtree turns about the joint by this angle in the
-  // body's sagittal swing (forward, about d x facing, d the child bone's direction; backward where the child and the
-  // bone above it both point down: knees, hocks; a child along the facing, a foot, turns its tail down), and the
+  // body's sagittal swing (forward, about d x facing, d the child bone's direction; down a leg the joints alternate
+  // from its root: hip forward, knee backward, a horse's hock forward; a child along the facing, a foot, turns its
+  // tail down), and the
   // joint's share is the one whose band volume change is closest to 0 there (1 where dual quaternions lose volume).
   double bendDegrees = 90.0;
   // The joint's share is the largest whose band change at the reference flexion is within keepTolerance x |linear's

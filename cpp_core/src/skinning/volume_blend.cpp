@@ -208,11 +208,17 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
       anyBlend = anyBlend || blend[v] >= options.minBlend;
     }
     if (!anyBlend) continue;
-    // Flexion: the child swings forward (about d x facing), backward where it and the bone above it (across
-    // twist splits) both point down (a knee, a hock); a child along the facing (a foot) turns its tail down.
+    // Flexion: the child swings forward (about d x facing); down a leg (downward bones, across twist splits) the
+    // joints alternate from the leg's root: hip forward, knee backward, a horse's hock forward again; a child along
+    // the facing (a foot) turns its tail down.
     const Vec3 d = direction(c);
-    int above = skeleton.bones[c].parent;
-    while (twist[above] && skeleton.bones[above].parent >= 0) above = skeleton.bones[above].parent;
+    auto realParent = [&](int b) {
+      int a = skeleton.bones[b].parent;
+      while (a >= 0 && twist[a] && skeleton.bones[a].parent >= 0) a = skeleton.bones[a].parent;
+      return a;
+    };
+    int downAbove = 0;  // downward bones above the joint, down to the leg's root
+    for (int a = realParent(c); a >= 0 && direction(a).dot(up) < -0.5; a = realParent(a)) ++downAbove;
     Vec3 axis = d.cross(facing);
     if (axis.norm() < 0.5) {
       axis = left - left.dot(d) * d;
@@ -221,7 +227,7 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
       if (axis.cross(d).dot(up) > 0.0) axis = -axis;
     } else {
       axis.normalize();
-      if (d.dot(up) < -0.5 && direction(above).dot(up) < -0.5) axis = -axis;
+      if (d.dot(up) < -0.5 && downAbove % 2 == 1) axis = -axis;
     }
     JointVolumeBlend report;
     if (!measureJoint(skeleton, w, skin, options, c, limbRadius, axis, inSubtree, blend, report)) continue;
