@@ -88,6 +88,22 @@ def test_batch_blend_extract_bind_bake():
     assert np.abs(positions[5] - positions[0]).max() > 0.05
 
 
+def test_batch_volume_blend_on_by_default_and_off_on_request():
+    """--bind writes the volume blend (the share group and the second Armature modifier) unless --volume-blend off."""
+    src = os.path.join(TMP, "arm_vb.blend")
+    skin_name, arm_name = arm_blend(src)
+    for flag, expected in ((None, True), ("off", False)):
+        out = os.path.join(TMP, f"vb_{flag}.blend")
+        code, log = batch("extract", "--bind", *(["--volume-blend", flag] if flag else []), "-o", out, blend=src)
+        assert code == 0, log
+        bpy.ops.wm.open_mainfile(filepath=out)
+        skin, arm = bpy.data.objects[skin_name], bpy.data.objects[arm_name]
+        binding = module("binding")
+        assert (binding.volume_blend_modifier(skin, arm) is not None) == expected, flag
+        assert (binding.VOLUME_BLEND_GROUP in skin.vertex_groups) == expected, flag
+        assert binding.armature_modifier(skin, arm).use_deform_preserve_volume != expected, flag
+
+
 def cli_command():
     """The myoskin CLI of this build, or Skip naming what is missing."""
     exe = os.path.join(os.environ.get("MYOSKIN_BUILD_DIR", os.path.join(SOURCE, "build")), "bin", "myoskin")
