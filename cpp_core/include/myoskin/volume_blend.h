@@ -21,14 +21,12 @@ namespace myoskin {
 // ============================================================================
 
 struct VolumeBlendOptions {
-  // Reference flexion of each joint, in degrees: the joint's child subtree turns about the joint by this angle in the
-  // body's sagittal swing (forward, about d x facing, d the child bone's direction; down a leg the joints alternate
-  // from its root: hip forward, knee backward, a horse's hock forward; a child along the facing, a foot, turns its
-  // tail down), and the
-  // joint's share is the one whose band volume change is closest to 0 there (1 where dual quaternions lose volume).
+  // Reference flexion of each joint, in degrees: the joint's child subtree turns about the joint by this angle
+  // (forward, about d x facing, d the child bone's direction; down a leg the joints alternate from its root: hip
+  // forward, knee backward, a horse's hock forward; a child along the facing, a foot, turns its tail down).
   double bendDegrees = 90.0;
-  // The joint's share is the largest whose band change at the reference flexion is within keepTolerance x |linear's
-  // change| of the smallest change any share gives: dual quaternions are kept where they already keep the volume that
+  // The joint's share is the largest whose |band change| at the reference flexion is at most the smallest any share
+  // gives or keepTolerance x |linear's change|: dual quaternions are kept where they already keep the volume that
   // well (measured: generated bipeds' elbows +0.8..+1.3 % against linear's -16..-22 % at 90 degrees, which a share
   // of 0.93-0.98 would zero but then lose 1-2 points more at 120 degrees).
   double keepTolerance = 0.1;
@@ -65,9 +63,10 @@ struct JointVolumeBlend {
 // #V dual-quaternion shares in [0, 1] for a skin (#V vertices, its triangles) bound to a skeleton by its skeleton
 // weights (#V by K over the bones): for each real joint (a bone with a parent, not a twist split: twistSplits) whose
 // skin the skeleton blends across it, the share s_j in [0, 1] minimising |band volume change| of the blend at the
-// reference flexion (within keepTolerance; s_j = 1 where dual quaternions lose volume there too: elbows, shoulders); each vertex takes sum_j b_j s_j / sum_j b_j over the joints it
-// blends across (b_j >= minBlend), 1 where it blends across none (one bone moves it; only muscle joints' scale tell the
-// two blends apart there, and dual quaternions keep it as today's Preserve Volume does). Deterministic (no threads).
+// reference flexion (within keepTolerance; s_j = 1 where dual quaternions lose volume there too: elbows, shoulders);
+// each vertex takes sum_j b_j s_j / sum_j b_j over the joints it blends across (b_j >= minBlend), 1 where it blends
+// across none (one bone moves it; only muscle joints' scale tell the two blends apart there, and dual quaternions keep
+// it as Preserve Volume does). Deterministic (no threads).
 // `joints` (optional) receives one entry per joint measured. Throws InputError on mismatched sizes, bad weights or
 // indices, non-finite vertices or options out of range (bendDegrees in (0, 180], bandRadius > 0, keepTolerance in
 // [0, 1], minBlend in (0, 1]).

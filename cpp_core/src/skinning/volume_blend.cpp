@@ -127,8 +127,8 @@ bool measureJoint(const Skeleton& skeleton, const SkinWeights& w, const Mesh& sk
     const Points p = (1.0 - s) * lin + s * dq;
     change[k] = (coneVolume(p, tris, joint) - v0) / std::abs(v0);
   }
-  // The largest share whose change is within keepTolerance x |linear's change| of the smallest change (dual
-  // quaternions where they keep the volume well enough or lose it anyway).
+  // The largest share whose |change| is at most the smallest |change| of any share or keepTolerance x |linear's
+  // change| (dual quaternions where they keep the volume well enough or lose it anyway).
   double smallest = std::abs(change[0]);
   for (double x : change) smallest = std::min(smallest, std::abs(x));
   const double allowed = std::max(smallest, o.keepTolerance * std::abs(change[0]));
