@@ -167,7 +167,7 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
   body.weights = w;
   const Skeleton joined = weightedSkeleton(body);  // tails at the continuing child's head (importers guess them)
   const std::vector<BoneRole> roles = characterBoneRoles(body);
-  const std::vector<char> twist = twistSplits(skeleton, w);
+  const std::vector<char> twist = twistSplits(joined, w);  // on the joined tails, as importers differ
   const double limbRadius = bodyLimbRadius(body, roles);
   Vec3 limbs = Vec3::Zero();
   for (int b = 0; b < nb; ++b)
