@@ -72,7 +72,7 @@ py::dict reportToDict(const ExtractionReport& r) {
   return d;
 }
 
-// Ground truth from the dicts make_synthetic_arm returns (name, bone, center_line, radius, peak_radius).
+// Ground truth from the dicts make_synthetic_arm returns (name, bone, center_line, radius, peak_radius; relief optional).
 std::vector<TrueMuscle> truthFromDicts(const py::list& truth) {
   std::vector<TrueMuscle> out;
   for (const py::handle& h : truth) {
@@ -84,8 +84,11 @@ std::vector<TrueMuscle> truthFromDicts(const py::list& truth) {
     for (Eigen::Index i = 0; i < line.rows(); ++i) t.centerLine.push_back(line.row(i).transpose());
     t.radius = d["radius"].cast<std::vector<double>>();
     t.peakRadius = d["peak_radius"].cast<double>();
+    if (d.contains("relief")) t.relief = d["relief"].cast<std::vector<double>>();
     if (t.radius.size() != t.centerLine.size())
       throw InputError("true muscle '" + t.name + "': radius and center_line sizes differ");
+    if (!t.relief.empty() && t.relief.size() != t.centerLine.size())
+      throw InputError("true muscle '" + t.name + "': relief and center_line sizes differ");
     out.push_back(std::move(t));
   }
   return out;
@@ -193,8 +196,8 @@ void bindExtraction(py::module_& m) {
 
   m.def(
       "measure_extraction",
-      [](const std::vector<Muscle>& found, const py::list& truth, double minCoverage) {
-        const ExtractionAccuracy a = measureExtraction(found, truthFromDicts(truth), minCoverage);
+      [](const std::vector<Muscle>& found, const py::list& truth, double minCoverage, double visibleReliefShare) {
+        const ExtractionAccuracy a = measureExtraction(found, truthFromDicts(truth), minCoverage, visibleReliefShare);
         py::dict d;
         d["true_muscles"] = a.trueMuscles;
         d["found_muscles"] = a.foundMuscles;
@@ -205,10 +208,12 @@ void bindExtraction(py::module_& m) {
         d["match_of_true"] = a.matchOfTrue;
         return d;
       },
-      py::arg("found"), py::arg("truth"), py::arg("min_coverage") = 0.6,
+      py::arg("found"), py::arg("truth"), py::arg("min_coverage") = 0.6, py::arg("visible_relief_share") = 0.5,
       "Recall/precision of found muscles against ground truth (make_synthetic_arm's dicts): a found muscle "
       "matches a true one when its root curve stays within half the true peak radius of the true centre "
-      "line over at least min_coverage of the true length. mean_center_error is relative to the radius.");
+      "line over at least min_coverage of the true visible length (where the dict's 'relief' is at least "
+      "visible_relief_share of its peak; the whole length without 'relief'). mean_center_error is relative to "
+      "the radius. Raises ValueError when relief and center_line sizes differ.");
 
   m.def(
       "reattach_muscle",

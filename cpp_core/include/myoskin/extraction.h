@@ -397,13 +397,18 @@ struct ExtractionAccuracy {
   double meanCenterError = 0.0;  // mean distance of matched root-curve points to the true centre line,
                                  // relative to the true muscle's peak radius
   std::vector<int> matchOfTrue;  // per true muscle: index of its found muscle, or -1
+  std::vector<double> coverageOfTrue;  // per true muscle: the best coverage of its visible length by any found muscle
 };
 
 // A found muscle matches a true one when its root curve stays within half the true muscle's (peak)
-// radius of the true centre line over at least `minCoverage` of the true length (the true line is
-// sampled densely; a sample is covered when the found root curve passes within the distance).
+// radius of the true centre line over at least `minCoverage` of the true muscle's visible length (the true
+// line is sampled densely; a sample is covered when the found root curve passes within the distance).
+// Visible length: where the muscle raises the skin (TrueMuscle::relief, interpolated between centre-line
+// points) by at least visibleReliefShare of its peak relief -- extraction finds muscles by the relief they
+// give the skin, so length buried under a neighbour, in the trunk or in the fat layer towards the tendons
+// does not count; a true muscle without relief values counts its whole length.
 // Matching is one-to-one, greedy by coverage. meanCenterError uses the matched muscles' section centres.
 ExtractionAccuracy measureExtraction(const std::vector<Muscle>& found, const std::vector<TrueMuscle>& truth,
-                                     double minCoverage = 0.6);
+                                     double minCoverage = 0.6, double visibleReliefShare = 0.5);
 
 }  // namespace myoskin
