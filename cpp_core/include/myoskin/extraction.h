@@ -194,6 +194,12 @@ struct ExtractionOptions {
   double spindleEnds = 0.75;
   int spindleSections = 4;
   double spindleSteepness = 0.05;
+  // Mirror twins (issue 13): on a body with a mirror plane (a torso plane on it, CuttingPlane::mirrorAxis), a limb chain
+  // that misses the floors above (and is no closed spindle) is kept when its mirror twin passed them: a chain of the
+  // same family on the other limb, at least half of whose bump centres, mirrored, lie within twinReach times the larger
+  // of the two chains' mean semi-axis a of this chain's centres, and half of this one's of its (the same belly on both
+  // sides; the floors decide on each side's own sampling of it). Twins of twins are not kept. 0 = off
+  double twinReach = 1.0;
   double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones are kept)
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
 };
@@ -226,7 +232,8 @@ struct ChainRecord {
   double steepness = 0.0;             // its bumps' mean protrusion / skin arc length (spindleSteepness)
   bool spindle = false;               // a closed spindle (spindleEnds; limb families only)
   std::string verdict;                // "kept" (before family dominance), "spindle" (kept below the floors as a closed
-                                      // spindle), "forced", or dropped: "short", "flat", "confidence"
+                                      // spindle), "twin" (kept below them as a kept chain's mirror twin, twinReach),
+                                      // "forced", or dropped: "short", "flat", "confidence"
 };
 
 struct ExtractionReport {
@@ -249,6 +256,7 @@ struct ExtractionReport {
                                                                        // too little evidence (minEvidence)
   int droppedFlat = 0;                // muscles whose bumps stand out less than minRelative on average
   int spindles = 0;                   // chains below those floors kept as closed spindles (spindleEnds)
+  int twins = 0;                      // chains below those floors kept as mirror twins of kept ones (twinReach)
   std::vector<ChainRecord> chainRecords;  // every linked chain with two or more bumps, in linking order
   int droppedOverlap = 0;             // muscles of a dominated family where families overlap
   int forced = 0;                     // muscles from forced regions
