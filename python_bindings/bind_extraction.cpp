@@ -41,6 +41,7 @@ py::dict reportToDict(const ExtractionReport& r) {
   d["split"] = r.split;
   d["dropped_flat"] = r.droppedFlat;
   d["spindles"] = r.spindles;
+  d["twins"] = r.twins;
   d["forced"] = r.forced;
   d["limb_radius"] = r.limbRadius;
   d["scale"] = r.scale;
@@ -103,7 +104,8 @@ void bindExtraction(py::module_& m) {
          int minSections, int maxPerRegion, const py::object& forcedRegions, bool buildSurfaces,
          double minRelative, double weakFraction, double minRelativeTrunk, bool mirrorLimbs, double faintRelative,
          double minEvidence, double jointWrap, double continuousFraction, double continuousEvidence,
-         const std::map<std::string, std::string>& boneRoles, double referenceLimbRadius, double spindleEnds) {
+         const std::map<std::string, std::string>& boneRoles, double referenceLimbRadius, double spindleEnds,
+         double twinReach) {
         ExtractionOptions o;
         if (!std::isfinite(referenceLimbRadius)) throw InputError("reference_limb_radius must be finite");
         o.referenceLimbRadius = referenceLimbRadius;
@@ -126,6 +128,7 @@ void bindExtraction(py::module_& m) {
         o.continuousEvidence = continuousEvidence;
         if (!(spindleEnds >= 0 && spindleEnds <= 1)) throw InputError("spindle_ends must be in [0, 1]");
         o.spindleEnds = spindleEnds;
+        o.twinReach = twinReach;  // validated by the core (InputError -> ValueError)
         o.minRelative = minRelative;
         o.minRelativeTrunk = minRelativeTrunk;
         o.profiles.mirrorLimbs = mirrorLimbs;
@@ -159,7 +162,7 @@ void bindExtraction(py::module_& m) {
       py::arg("continuous_evidence") = ExtractionOptions{}.continuousEvidence,
       py::arg("bone_roles") = std::map<std::string, std::string>{},
       py::arg("reference_limb_radius") = 0.0,
-      py::arg("spindle_ends") = ExtractionOptions{}.spindleEnds,
+      py::arg("spindle_ends") = ExtractionOptions{}.spindleEnds, py::arg("twin_reach") = ExtractionOptions{}.twinReach,
       "Extract muscles from a character's skin (Yang & Zhang 2006). spacing: metres between cutting planes "
       "(0 = automatic); vertex_mask: #V booleans, extract only there; forced_regions: list of #V masks, one "
       "muscle forced per region; min_confidence: drop weaker muscles; max_per_region: keep the most confident "
@@ -174,7 +177,8 @@ void bindExtraction(py::module_& m) {
       "detected roles (ignore, limb, shoulder, neck, spine, pelvis); reference_limb_radius: the limb radius every default length "
       "holds for (0 = the built-in reference, < 0 = the character's own units); spindle_ends: a limb chain below the "
       "length and height floors is kept when it is a closed spindle whose ends stay below this share of its peak "
-      "(0 = off). Returns (muscles, report) where report has per-stage "
+      "(0 = off); twin_reach: such a limb chain is also kept when its mirror twin on the other limb passed the floors (its "
+      "centres within this times the chains' mean semi-axis a of the twin's, mirrored; 0 = off). Returns (muscles, report) where report has per-stage "
       "counts, skipped sections with reasons, timings per stage (seconds), limb_radius and scale (the body scale), "
       "excluded (skin components left out: small or rigidly bound), analysed (any section looked at) and diagnosis "
       "(why nothing was found, else empty).");

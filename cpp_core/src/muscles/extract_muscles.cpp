@@ -348,6 +348,8 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
       !(options.spindleSteepness >= 0.0 && std::isfinite(options.spindleSteepness)))
     throw InputError("spindle options: spindleEnds must be in [0, 1], spindleSections >= 0 and spindleSteepness finite "
                      "and >= 0");
+  if (!(options.twinReach >= 0.0 && std::isfinite(options.twinReach)))
+    throw InputError("twinReach must be finite and >= 0");
   if (options.bumps.baseHarmonics < 0 || options.bumps.baseHarmonics > 16)
     throw InputError("bumps.baseHarmonics must be in [0, 16], got " + std::to_string(options.bumps.baseHarmonics));
   ExtractionResult result;
