@@ -198,7 +198,9 @@ struct ExtractionOptions {
   // that misses the floors above (and is no closed spindle) is kept when its mirror twin passed them: a chain of the
   // same family on the other limb, at least half of whose bump centres, mirrored, lie within twinReach times the larger
   // of the two chains' mean semi-axis a of this chain's centres, and half of this one's of its (the same belly on both
-  // sides; the floors decide on each side's own sampling of it). Twins of twins are not kept. 0 = off
+  // sides; the floors decide on each side's own sampling of it). Only a missing pair member is restored: not when a kept
+  // chain on the dropped one's limb is the twin already (a second fragment of a paired belly), and twins of twins are
+  // not kept. 0 = off
   double twinReach = 1.0;
   double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones are kept)
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all

@@ -637,8 +637,14 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
     for (const auto& [ci, ri] : dropped) {
       const MuscleChain& c = chains[ci];
       bool twin = false;
-      for (size_t k = 0; k < passed && !twin; ++k)
-        twin = !kept[k].forced && mirrorTwin(kept[k], c, sections, mc, mn, options.twinReach);
+      for (size_t k = 0; k < passed && !twin; ++k) {
+        if (kept[k].forced || !mirrorTwin(kept[k], c, sections, mc, mn, options.twinReach)) continue;
+        // Only a missing pair member: not when a kept chain on this chain's limb is that chain's twin already.
+        twin = true;
+        for (size_t j = 0; j < passed && twin; ++j)
+          twin = !(j != k && kept[j].familyIndex == c.familyIndex &&
+                   mirrorTwin(kept[k], kept[j], sections, mc, mn, options.twinReach));
+      }
       if (!twin || c.confidence < options.minConfidence) continue;
       ++rep.twins;
       if (ri >= 0) {
