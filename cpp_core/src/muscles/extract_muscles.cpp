@@ -645,7 +645,7 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
           twin = !(j != k && kept[j].familyIndex == c.familyIndex &&
                    mirrorTwin(kept[k], kept[j], sections, mc, mn, options.twinReach));
       }
-      if (!twin || c.confidence < options.minConfidence) continue;
+      if (!twin) continue;
       ++rep.twins;
       if (ri >= 0) {
         ChainRecord& r = rep.chainRecords[ri];
