@@ -1,6 +1,6 @@
 // Extraction accuracy on varied generated characters (issue 13, "Any character", item 7): recall and precision
-// against the generator's ground truth per kind and seed, muscular and smooth. Seeds 1-3 are the ones to look at
-// ("tune"); 20-27 are held out (tests/cpp/test_varied_characters.cpp asserts on them). Printed, never asserted.
+// against the generator's ground truth (each true muscle's visible length, measureExtraction) per kind and seed,
+// muscular and smooth. Seeds 1-3 are the ones to look at ("tune"); 20-27 are held out (tests/cpp/test_varied_characters.cpp asserts on them). Printed, never asserted.
 //   bench_varied_characters [first_seed last_seed]   (default: 1-3 and 20-27)
 #include <chrono>
 #include <cstdio>

@@ -79,8 +79,8 @@ void usage(std::ostream& out) {
          "  generate arm -o DIR [--seed N] [--muscle-scale S]  write the procedural test arm\n"
          "                                                      (arm.obj, arm.skeleton.json, arm.truth.json)\n"
          "  extract CHARACTER -o muscles.json [--spacing M] [--min-confidence C] [--min-sections N]\n"
-         "          [--max-per-region N] [--min-evidence E] [--spindle-ends F] [--no-surfaces] [--mesh NAME]\n"
-         "          [--roles ROLES.json]\n"
+         "          [--max-per-region N] [--min-evidence E] [--spindle-ends F] [--twin-reach R] [--no-surfaces]\n"
+         "          [--mesh NAME] [--roles ROLES.json]\n"
          "          extract muscles from the skin (the whole character: every mesh its skin deforms, or --mesh)\n"
          "  deform CHARACTER [--muscles M.json] --pose P.json -o out.obj|out.pc2 [--dominance D] [--threads N]\n"
          "          [--preserve-volume | --volume-blend] [--dq-scale pivot|blended] [--method eq3|anchored]\n"
@@ -245,6 +245,8 @@ int cmdExtract(const Args& args) {
   if (!(options.minEvidence >= 0)) throw InputError("--min-evidence must be >= 0");
   options.spindleEnds = numberOption(args, "--spindle-ends", options.spindleEnds);
   if (!(options.spindleEnds >= 0 && options.spindleEnds <= 1)) throw InputError("--spindle-ends must be in [0, 1]");
+  options.twinReach = numberOption(args, "--twin-reach", options.twinReach);
+  if (!(options.twinReach >= 0 && std::isfinite(options.twinReach))) throw InputError("--twin-reach must be >= 0");
   options.buildSurfaces = std::find(args.flags.begin(), args.flags.end(), "--no-surfaces") == args.flags.end();
   const Character c = loadArgCharacter(args, "extract");
   const ExtractionResult r = extractMuscles(c, options);
@@ -531,7 +533,7 @@ int main(int argc, char** argv) {
     if (command == "extract")
       return cmdExtract(parse(argc, argv, 2,
                               {"--output", "--skeleton", "--spacing", "--min-confidence", "--min-sections", "--max-per-region",
-                               "--min-evidence", "--spindle-ends", "--mesh", "--roles"}));
+                               "--min-evidence", "--spindle-ends", "--twin-reach", "--mesh", "--roles"}));
     if (command == "deform")
       return cmdDeform(
           parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh", "--dq-scale",

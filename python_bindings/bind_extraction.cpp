@@ -41,6 +41,7 @@ py::dict reportToDict(const ExtractionReport& r) {
   d["split"] = r.split;
   d["dropped_flat"] = r.droppedFlat;
   d["spindles"] = r.spindles;
+  d["twins"] = r.twins;
   d["forced"] = r.forced;
   d["limb_radius"] = r.limbRadius;
   d["scale"] = r.scale;
@@ -72,7 +73,7 @@ py::dict reportToDict(const ExtractionReport& r) {
   return d;
 }
 
-// Ground truth from the dicts make_synthetic_arm returns (name, bone, center_line, radius, peak_radius).
+// Ground truth from the dicts make_synthetic_arm returns (name, bone, center_line, radius, peak_radius; relief optional).
 std::vector<TrueMuscle> truthFromDicts(const py::list& truth) {
   std::vector<TrueMuscle> out;
   for (const py::handle& h : truth) {
@@ -84,8 +85,11 @@ std::vector<TrueMuscle> truthFromDicts(const py::list& truth) {
     for (Eigen::Index i = 0; i < line.rows(); ++i) t.centerLine.push_back(line.row(i).transpose());
     t.radius = d["radius"].cast<std::vector<double>>();
     t.peakRadius = d["peak_radius"].cast<double>();
+    if (d.contains("relief")) t.relief = d["relief"].cast<std::vector<double>>();
     if (t.radius.size() != t.centerLine.size())
       throw InputError("true muscle '" + t.name + "': radius and center_line sizes differ");
+    if (!t.relief.empty() && t.relief.size() != t.centerLine.size())
+      throw InputError("true muscle '" + t.name + "': relief and center_line sizes differ");
     out.push_back(std::move(t));
   }
   return out;
@@ -100,7 +104,8 @@ void bindExtraction(py::module_& m) {
          int minSections, int maxPerRegion, const py::object& forcedRegions, bool buildSurfaces,
          double minRelative, double weakFraction, double minRelativeTrunk, bool mirrorLimbs, double faintRelative,
          double minEvidence, double jointWrap, double continuousFraction, double continuousEvidence,
-         const std::map<std::string, std::string>& boneRoles, double referenceLimbRadius, double spindleEnds) {
+         const std::map<std::string, std::string>& boneRoles, double referenceLimbRadius, double spindleEnds,
+         double twinReach) {
         ExtractionOptions o;
         if (!std::isfinite(referenceLimbRadius)) throw InputError("reference_limb_radius must be finite");
         o.referenceLimbRadius = referenceLimbRadius;
@@ -123,6 +128,7 @@ void bindExtraction(py::module_& m) {
         o.continuousEvidence = continuousEvidence;
         if (!(spindleEnds >= 0 && spindleEnds <= 1)) throw InputError("spindle_ends must be in [0, 1]");
         o.spindleEnds = spindleEnds;
+        o.twinReach = twinReach;  // validated by the core (InputError -> ValueError)
         o.minRelative = minRelative;
         o.minRelativeTrunk = minRelativeTrunk;
         o.profiles.mirrorLimbs = mirrorLimbs;
@@ -156,7 +162,7 @@ void bindExtraction(py::module_& m) {
       py::arg("continuous_evidence") = ExtractionOptions{}.continuousEvidence,
       py::arg("bone_roles") = std::map<std::string, std::string>{},
       py::arg("reference_limb_radius") = 0.0,
-      py::arg("spindle_ends") = ExtractionOptions{}.spindleEnds,
+      py::arg("spindle_ends") = ExtractionOptions{}.spindleEnds, py::arg("twin_reach") = ExtractionOptions{}.twinReach,
       "Extract muscles from a character's skin (Yang & Zhang 2006). spacing: metres between cutting planes "
       "(0 = automatic); vertex_mask: #V booleans, extract only there; forced_regions: list of #V masks, one "
       "muscle forced per region; min_confidence: drop weaker muscles; max_per_region: keep the most confident "
@@ -171,7 +177,8 @@ void bindExtraction(py::module_& m) {
       "detected roles (ignore, limb, shoulder, neck, spine, pelvis); reference_limb_radius: the limb radius every default length "
       "holds for (0 = the built-in reference, < 0 = the character's own units); spindle_ends: a limb chain below the "
       "length and height floors is kept when it is a closed spindle whose ends stay below this share of its peak "
-      "(0 = off). Returns (muscles, report) where report has per-stage "
+      "(0 = off); twin_reach: such a limb chain is also kept when its mirror twin on the other limb passed the floors (its "
+      "centres within this times the chains' mean semi-axis a of the twin's, mirrored; 0 = off). Returns (muscles, report) where report has per-stage "
       "counts, skipped sections with reasons, timings per stage (seconds), limb_radius and scale (the body scale), "
       "excluded (skin components left out: small or rigidly bound), analysed (any section looked at) and diagnosis "
       "(why nothing was found, else empty).");
@@ -193,8 +200,8 @@ void bindExtraction(py::module_& m) {
 
   m.def(
       "measure_extraction",
-      [](const std::vector<Muscle>& found, const py::list& truth, double minCoverage) {
-        const ExtractionAccuracy a = measureExtraction(found, truthFromDicts(truth), minCoverage);
+      [](const std::vector<Muscle>& found, const py::list& truth, double minCoverage, double visibleReliefShare) {
+        const ExtractionAccuracy a = measureExtraction(found, truthFromDicts(truth), minCoverage, visibleReliefShare);
         py::dict d;
         d["true_muscles"] = a.trueMuscles;
         d["found_muscles"] = a.foundMuscles;
@@ -205,10 +212,12 @@ void bindExtraction(py::module_& m) {
         d["match_of_true"] = a.matchOfTrue;
         return d;
       },
-      py::arg("found"), py::arg("truth"), py::arg("min_coverage") = 0.6,
+      py::arg("found"), py::arg("truth"), py::arg("min_coverage") = 0.6, py::arg("visible_relief_share") = 0.5,
       "Recall/precision of found muscles against ground truth (make_synthetic_arm's dicts): a found muscle "
       "matches a true one when its root curve stays within half the true peak radius of the true centre "
-      "line over at least min_coverage of the true length. mean_center_error is relative to the radius.");
+      "line over at least min_coverage of the true visible length (where the dict's 'relief' is at least "
+      "visible_relief_share of its peak; the whole length without 'relief'). mean_center_error is relative to "
+      "the radius. Raises ValueError when relief and center_line sizes differ.");
 
   m.def(
       "reattach_muscle",

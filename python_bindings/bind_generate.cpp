@@ -18,6 +18,7 @@ py::list truthDicts(const std::vector<TrueMuscle>& muscles) {
     d["center_line"] = line;
     d["radius"] = Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(t.radius.data(), t.radius.size()));
     d["peak_radius"] = t.peakRadius;
+    d["relief"] = Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(t.relief.data(), t.relief.size()));
     truth.append(d);
   }
   return truth;
@@ -45,7 +46,7 @@ void bindGenerate(py::module_& m) {
       py::arg("seed") = 1, py::arg("muscle_scale") = 1.0, py::arg("rings_per_metre") = SyntheticArmOptions{}.ringsPerMetre,
       py::arg("segments_around") = SyntheticArmOptions{}.segmentsAround,
       "The procedural muscular right arm: (Character, [true muscle dicts with name, bone, center_line #N by 3, "
-      "radius #N, peak_radius]). Deterministic for the same arguments; muscle_scale=0 gives a smooth arm.");
+      "radius #N, peak_radius, relief #N: how far the muscle raises the skin at each point]). Deterministic for the same arguments; muscle_scale=0 gives a smooth arm.");
   m.def(
       "make_synthetic_body",
       [](unsigned seed, const std::string& kind, double muscleScale, double scale, const std::string& naming, bool split,

@@ -81,5 +81,6 @@ def truth_to_json_dict(truth):
             "peak_radius": float(t["peak_radius"]),
             "center_line": np.asarray(t["center_line"], dtype=float).tolist(),
             "radius": np.asarray(t["radius"], dtype=float).tolist(),
+            "relief": np.asarray(t.get("relief", []), dtype=float).tolist(),
         } for t in truth],
     }

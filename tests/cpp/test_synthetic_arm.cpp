@@ -339,8 +339,38 @@ TEST(SyntheticArm, TruthJsonRoundTrips) {
       EXPECT_TRUE(back[m].centerLine[k].isApprox(s.muscles[m].centerLine[k], 1e-12));
       EXPECT_DOUBLE_EQ(back[m].radius[k], s.muscles[m].radius[k]);
     }
+    ASSERT_EQ(back[m].relief.size(), s.muscles[m].relief.size());
+    ASSERT_EQ(back[m].relief.size(), back[m].centerLine.size());
+    for (size_t k = 0; k < back[m].relief.size(); ++k) EXPECT_DOUBLE_EQ(back[m].relief[k], s.muscles[m].relief[k]);
   }
   EXPECT_TRUE(trueMusclesFromJson(trueMusclesToJson({})).empty());
+}
+
+TEST(SyntheticArm, TruthReliefAndItsJson) {
+  // Relief: how far each muscle raises the skin over the arm without it; the tendon ends lie under the skin.
+  const SyntheticCharacter s = arm(1);
+  ASSERT_EQ(s.muscles.size(), 6u);
+  for (const TrueMuscle& m : s.muscles) {
+    ASSERT_EQ(m.relief.size(), m.centerLine.size()) << m.name;
+    const double peak = *std::max_element(m.relief.begin(), m.relief.end());
+    EXPECT_GT(peak, 0.1 * m.peakRadius) << m.name;
+    EXPECT_LT(std::min(m.relief.front(), m.relief.back()), 0.5 * peak) << m.name;
+    EXPECT_GE(*std::min_element(m.relief.begin(), m.relief.end()), 0.0) << m.name;
+  }
+  // JSON: relief optional (absent or empty = unknown), one value per point, never negative.
+  std::string json = trueMusclesToJson({s.muscles[0]});
+  const size_t at = json.find("\"relief\"");
+  ASSERT_NE(at, std::string::npos);
+  std::vector<TrueMuscle> none = s.muscles;
+  none.resize(1);
+  none[0].relief.clear();
+  EXPECT_TRUE(trueMusclesFromJson(trueMusclesToJson(none))[0].relief.empty());
+  TrueMuscle shortRelief = s.muscles[0];
+  shortRelief.relief.pop_back();
+  EXPECT_THROW(trueMusclesFromJson(trueMusclesToJson({shortRelief})), InputError);
+  TrueMuscle negative = s.muscles[0];
+  negative.relief[3] = -1e-3;
+  EXPECT_THROW(trueMusclesFromJson(trueMusclesToJson({negative})), InputError);
 }
 
 TEST(SyntheticArm, TruthJsonRejectsBadInput) {

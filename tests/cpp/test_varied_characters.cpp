@@ -94,7 +94,25 @@ TEST(VariedCharacters, BodiesAreClosedRiggedCharactersWithTruth) {
       ASSERT_GE(bone, 0) << m.bone;
       EXPECT_EQ(roles[bone], BoneRole::Limb) << m.name;
       EXPECT_GT(m.peakRadius, 0.005) << m.name;
+      // Relief over the body without the muscle: shown at the belly, not at the tendon ends.
+      ASSERT_EQ(m.relief.size(), m.centerLine.size()) << m.name;
+      const double peak = *std::max_element(m.relief.begin(), m.relief.end());
+      EXPECT_GT(peak, 0.1 * m.peakRadius) << m.name;
+      EXPECT_LT(std::min(m.relief.front(), m.relief.back()), 0.5 * peak) << m.name;
     }
+    // The visible length is what measureExtraction judges: a muscle found over the whole true length matches either way.
+    ASSERT_FALSE(b.muscles.empty());
+    const TrueMuscle& first = b.muscles.front();
+    Muscle whole;
+    whole.rootCurve = first.centerLine;
+    EXPECT_EQ(measureExtraction({whole}, {first}).matched, 1);
+    Muscle visibleHalf;  // the part of the line where the relief is at least half its peak
+    const double top = *std::max_element(first.relief.begin(), first.relief.end());
+    for (size_t k = 0; k < first.centerLine.size(); ++k)
+      if (first.relief[k] >= 0.5 * top) visibleHalf.rootCurve.push_back(first.centerLine[k]);
+    ASSERT_GE(visibleHalf.rootCurve.size(), 2u);
+    EXPECT_EQ(measureExtraction({visibleHalf}, {first}, 0.9).matched, 1);   // covers the visible length
+    EXPECT_EQ(measureExtraction({visibleHalf}, {first}, 0.9, 0.0).matched, 0);  // not the whole length
     // Smooth: no truth, the same skeleton.
     const SyntheticCharacter smooth = body(1, kind, 0.0);
     EXPECT_TRUE(smooth.muscles.empty());
@@ -118,13 +136,14 @@ TEST(VariedCharacters, BodiesAreClosedRiggedCharactersWithTruth) {
 TEST(VariedCharacters, HeldOutRecallAndPrecision) {
   for (BodyKind kind : kKinds) {
     double recall = 0.0, precision = 0.0;
-    int seeds = 0, spindles = 0;
+    int seeds = 0, spindles = 0, twins = 0;
     for (unsigned seed = kFirstHeldOut; seed <= kLastHeldOut; ++seed, ++seeds) {
       const SyntheticCharacter b = body(seed, kind);
       const ExtractionResult r = extractMuscles(b.character);
       const ExtractionAccuracy acc = measureExtraction(r.muscles, b.muscles);
       recall += acc.recall, precision += acc.precision;
       spindles += r.report.spindles;
+      twins += r.report.twins;
       // The chain records say which chains the spindle rule kept, and they are closed spindles by its options.
       int rescued = 0;
       for (const ChainRecord& c : r.report.chainRecords) {
@@ -137,22 +156,29 @@ TEST(VariedCharacters, HeldOutRecallAndPrecision) {
         EXPECT_LT(std::max(c.significance.front(), c.significance.back()), ExtractionOptions{}.spindleEnds * top);
       }
       EXPECT_EQ(rescued, r.report.spindles) << bodyKindName(kind) << " seed " << seed;
+      const auto twinRecords = std::count_if(r.report.chainRecords.begin(), r.report.chainRecords.end(),
+                                             [](const ChainRecord& c) { return c.verdict == "twin"; });
+      EXPECT_LE(twinRecords, r.report.twins) << bodyKindName(kind) << " seed " << seed;  // 1-bump chains have no record
       std::printf("held-out %s seed %u: %d true, %d found, %d matched: recall %.3f precision %.3f\n", bodyKindName(kind),
                   seed, acc.trueMuscles, acc.foundMuscles, acc.matched, acc.recall, acc.precision);
       EXPECT_GT(acc.matched, 0) << bodyKindName(kind) << " seed " << seed;
     }
     recall /= seeds, precision /= seeds;
-    std::printf("held-out %s seeds %u-%u: mean recall %.3f, precision %.3f; %d chains kept as closed spindles\n",
-                bodyKindName(kind), kFirstHeldOut, kLastHeldOut, recall, precision, spindles);
+    std::printf("held-out %s seeds %u-%u: mean recall %.3f, precision %.3f; %d chains kept as closed spindles, %d as "
+                "mirror twins\n", bodyKindName(kind), kFirstHeldOut, kLastHeldOut, recall, precision, spindles, twins);
     EXPECT_GT(spindles, 0) << bodyKindName(kind);  // the faint bellies the floors drop (ExtractionOptions::spindleEnds)
-    // Measured: biped recall 0.722, precision 0.880; quadruped recall 0.883, precision 0.908 (before the spindle rule,
+    if (kind == BodyKind::Biped) EXPECT_GT(twins, 0);  // ... and their mirror twins (ExtractionOptions::twinReach)
+    // Measured against the visible length (measureExtraction: where a muscle raises the skin by at least half its peak
+    // relief, TrueMuscle::relief): biped recall 0.819, precision 0.957; quadruped recall 0.945, precision 0.975 (without
+    // the mirror twins, ExtractionOptions::twinReach: biped 0.785 / 0.954, quadruped the same). Against the whole true
+    // length, as before TrueMuscle::relief: biped 0.722 / 0.880, quadruped 0.883 / 0.908 (before the spindle rule,
     // ExtractionOptions::spindleEnds: biped 0.653 / 0.911, quadruped 0.828 / 0.899). The target is 0.9 for
     // both: asserted where it holds, printed where it does not, and the floors below lie just under what was measured.
     if (recall < 0.9) std::printf("SHORT OF TARGET: %s mean recall %.3f < 0.9\n", bodyKindName(kind), recall);
     if (precision < 0.9) std::printf("SHORT OF TARGET: %s mean precision %.3f < 0.9\n", bodyKindName(kind), precision);
     const bool biped = kind == BodyKind::Biped;
-    EXPECT_GE(recall, biped ? 0.72 : 0.88) << bodyKindName(kind);
-    EXPECT_GE(precision, biped ? 0.87 : 0.9) << bodyKindName(kind);
+    EXPECT_GE(recall, biped ? 0.81 : 0.93) << bodyKindName(kind);
+    EXPECT_GE(precision, biped ? 0.95 : 0.96) << bodyKindName(kind);
   }
 }
 

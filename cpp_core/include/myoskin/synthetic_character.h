@@ -15,6 +15,11 @@ struct TrueMuscle {
   std::vector<Vec3> centerLine;
   std::vector<double> radius;   // radius of the muscle's cross-section at each centre-line point
   double peakRadius = 0.0;
+  // Per centre-line point (or empty = unknown): how far the muscle raises the skin there, along the ray from the limb
+  // axis through the point, over the same body without this muscle (>= 0, the character's units). Where a muscle
+  // dives to its tendons, lies under a neighbour or inside the trunk's union, the skin does not show it: the visible
+  // length (measureExtraction) is where relief >= half the muscle's peak relief.
+  std::vector<double> relief;
 };
 
 struct SyntheticArmOptions {
@@ -91,9 +96,10 @@ const char* bodyKindName(BodyKind kind);        // "biped", "quadruped"
 const char* boneNamingName(BoneNaming naming);  // "rig", "blender", "german", "japanese", "unnamed"
 
 // Ground truth as JSON (format "myoskin.true_muscles", version 1), positions in metres:
-// {"format","version","muscles":[{"name","bone","center_line":[[x,y,z],...],"radius":[...],"peak_radius"}]}
+// {"format","version","muscles":[{"name","bone","center_line":[[x,y,z],...],"radius":[...],"peak_radius","relief":[...]}]}
+// ("relief" is optional when read: one value per centre-line point, or absent/empty = unknown)
 std::string trueMusclesToJson(const std::vector<TrueMuscle>& muscles);
-// Parses and validates (finite values, matching sizes, non-negative radii); throws InputError.
+// Parses and validates (finite values, matching sizes, non-negative radii and relief); throws InputError.
 std::vector<TrueMuscle> trueMusclesFromJson(const std::string& text);
 
 }  // namespace myoskin

@@ -265,17 +265,38 @@ double skinRadius(const Layout& layout, const std::vector<MuscleModel>& muscles,
   return std::isfinite(bellies) ? smoothMax(base, bellies, kSoftness) : base;
 }
 
-// Ground truth: the ellipse centres and mean radii sqrt(a b) where the radius exceeds 10 % of its peak.
+// The belly fractions s of the ground-truth centre-line points (kCenterLinePoints, where the radius exceeds 10 % of
+// its peak).
+inline std::vector<double> truthStations(const MuscleModel& m) {
+  const double q = std::asin(std::pow(kTruthCutoff, 1.0 / kBellyExponent)) / kPi;
+  const double g = m.gamma();
+  const double sLo = std::pow(q, 1.0 / g), sHi = std::pow(1.0 - q, 1.0 / g);
+  std::vector<double> out;
+  for (int k = 0; k < kCenterLinePoints; ++k) out.push_back(sLo + (sHi - sLo) * k / (kCenterLinePoints - 1));
+  return out;
+}
+
+// Relief of a muscle at its truth stations (TrueMuscle::relief): how far the skin stands out along the ray from the
+// limb axis through the centre-line point, skin(x, theta, true) with every muscle minus skin(x, theta, false) without
+// this one (never below 0). SkinAt: (x along the limb axis, theta around it, with the muscle?) -> skin distance.
+template <class Layout, class SkinAt>
+std::vector<double> muscleRelief(const MuscleModel& m, const Layout& layout, const SkinAt& skinAt) {
+  std::vector<double> out;
+  for (double s : truthStations(m)) {
+    const double x = m.x0 + s * (m.x1 - m.x0), theta = sliceAt(m, layout, s).theta;
+    out.push_back(std::max(0.0, skinAt(x, theta, true) - skinAt(x, theta, false)));
+  }
+  return out;
+}
+
+// Ground truth: the ellipse centres and mean radii sqrt(a b) where the radius exceeds 10 % of its peak (relief left
+// empty: the generators fill it, muscleRelief).
 template <class Layout>
 TrueMuscle trueMuscle(const MuscleModel& m, const Layout& layout) {
   TrueMuscle t;
   t.name = m.name;
   t.bone = m.bone;
-  const double q = std::asin(std::pow(kTruthCutoff, 1.0 / kBellyExponent)) / kPi;
-  const double g = m.gamma();
-  const double sLo = std::pow(q, 1.0 / g), sHi = std::pow(1.0 - q, 1.0 / g);
-  for (int k = 0; k < kCenterLinePoints; ++k) {
-    const double s = sLo + (sHi - sLo) * k / (kCenterLinePoints - 1);
+  for (double s : truthStations(m)) {
     const MuscleSlice e = sliceAt(m, layout, s);
     t.centerLine.emplace_back(m.x0 + s * (m.x1 - m.x0), e.rho * std::cos(e.theta), e.rho * std::sin(e.theta));
     t.radius.push_back(std::sqrt(e.a * e.b));

@@ -217,7 +217,15 @@ SyntheticCharacter makeSyntheticArm(const SyntheticArmOptions& options) {
   c.sourceVertexCount = c.mesh.numVertices();
   c.sourceToWelded.resize(c.sourceVertexCount);
   for (int i = 0; i < c.sourceVertexCount; ++i) c.sourceToWelded[i] = i;
-  for (const MuscleModel& m : muscles) out.muscles.push_back(trueMuscle(m, layout));
+  for (size_t i = 0; i < muscles.size(); ++i) {
+    TrueMuscle t = trueMuscle(muscles[i], layout);
+    std::vector<MuscleModel> others = muscles;
+    others.erase(others.begin() + static_cast<std::ptrdiff_t>(i));
+    t.relief = muscleRelief(muscles[i], layout, [&](double x, double theta, bool with) {
+      return skinRadius(layout, with ? muscles : others, x, theta);
+    });
+    out.muscles.push_back(std::move(t));
+  }
   validateCharacter(c);
   return out;
 }

@@ -9,6 +9,7 @@
 #include <map>
 #include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "generate/limb_model.h"
@@ -485,6 +486,22 @@ class BodyField {
   const std::vector<Part>& parts_;
 };
 
+// Distance of the skin from a part's axis at (x, theta) of its frame (left side): the first point where the body field
+// turns outside going out along the ray, 0.5 mm steps then bisection; `reach` (metres) when the ray stays inside.
+double skinAlongRay(const BodyField& field, const Part& part, double x, double theta, double reach = 0.6) {
+  const double c = std::cos(theta), s = std::sin(theta);
+  auto at = [&](double r) { return field(part.toWorld(Vec3(x, r * c, r * s))); };
+  constexpr double kStep = 0.0005;
+  if (at(0.0) >= 0.0) return 0.0;
+  for (double r = 0.0; r < reach; r += kStep) {
+    if (at(r + kStep) < 0.0) continue;
+    double lo = r, hi = r + kStep;
+    for (int it = 0; it < 30; ++it) (at(0.5 * (lo + hi)) < 0.0 ? lo : hi) = 0.5 * (lo + hi);
+    return 0.5 * (lo + hi);
+  }
+  return reach;
+}
+
 // Closed, outward-oriented triangle mesh of {field < 0}.
 Mesh marchTetrahedra(const BodyField& field, const Vec3& lo, const Vec3& hi, double h) {
   Grid g;
@@ -760,13 +777,29 @@ SyntheticCharacter makeSyntheticBody(const SyntheticBodyOptions& options) {
   // Ground truth: each limb part's muscles, left and right.
   std::map<std::string, int> boneByKey;
   for (size_t b = 0; b < body.bones.size(); ++b) boneByKey[body.bones[b].key] = static_cast<int>(b);
+  // Relief (TrueMuscle::relief) from the whole body's skin, with and without the muscle (the same on both sides).
+  std::map<std::pair<int, size_t>, std::vector<double>> reliefOf;
+  for (int p : body.limbParts) {
+    const Part& part = body.parts[p];
+    for (size_t i = 0; i < part.muscles.size(); ++i) {
+      std::vector<Part> without = body.parts;
+      without[p].muscles.erase(without[p].muscles.begin() + static_cast<std::ptrdiff_t>(i));
+      const BodyField fieldWithout(without);
+      reliefOf[{p, i}] = muscleRelief(part.muscles[i], part.layout, [&](double x, double theta, bool with) {
+        return skinAlongRay(with ? field : fieldWithout, part, x, theta);
+      });
+    }
+  }
   for (int p : body.limbParts) {
     Part part = body.parts[p];
     for (int side = 0; side < 2; ++side) {
       part.mirrored = side == 1;
       const char* suffix = side == 0 ? ".L" : ".R";
-      for (const MuscleModel& m : part.muscles) {
+      for (size_t i = 0; i < part.muscles.size(); ++i) {
+        const MuscleModel& m = part.muscles[i];
         TrueMuscle t = trueMuscle(m, part.layout);
+        t.relief = reliefOf.at({p, i});
+        for (double& r : t.relief) r *= options.scale;
         for (Vec3& q : t.centerLine) q = part.toWorld(q) * options.scale;
         for (double& r : t.radius) r *= options.scale;
         t.peakRadius *= options.scale;

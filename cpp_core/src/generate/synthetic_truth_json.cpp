@@ -63,6 +63,16 @@ TrueMuscle muscleFromJson(const json& j, size_t index) {
   }
   m.peakRadius = finiteNumber(member(j, "peak_radius", where), where + " peak_radius");
   if (m.peakRadius < 0.0) throw InputError("true muscles JSON: " + where + " has a negative peak_radius");
+  if (j.contains("relief") && !(j.at("relief").is_array() && j.at("relief").empty())) {  // optional: absent or empty
+    const json& relief = j.at("relief");
+    if (!relief.is_array() || relief.size() != line.size())
+      throw InputError("true muscles JSON: " + where + " relief must have one value per center_line point");
+    for (size_t k = 0; k < relief.size(); ++k) {
+      const double r = finiteNumber(relief[k], where + " relief[" + std::to_string(k) + "]");
+      if (r < 0.0) throw InputError("true muscles JSON: " + where + " has a negative relief");
+      m.relief.push_back(r);
+    }
+  }
   return m;
 }
 
@@ -82,7 +92,8 @@ std::string trueMusclesToJson(const std::vector<TrueMuscle>& muscles) {
                               {"bone", m.bone},
                               {"center_line", line},
                               {"radius", m.radius},
-                              {"peak_radius", m.peakRadius}});
+                              {"peak_radius", m.peakRadius},
+                              {"relief", m.relief}});
   }
   return out.dump(1);
 }

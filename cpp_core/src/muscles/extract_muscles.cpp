@@ -143,6 +143,68 @@ bool spindleChain(const MuscleChain& c, const std::vector<SectionBumps>& section
   return true;
 }
 
+// The skeleton's mirror plane (point c, unit normal n): through a torso plane on it (CuttingPlane::mirrorAxis), normal
+// to that plane's x or y axis, whichever maps the limb planes' origins closer onto another limb's (bone frames differ in
+// which in-plane axis points sideways). False without such a plane or limb planes.
+bool mirrorPlane(const std::vector<CuttingPlane>& planes, Vec3& c, Vec3& n) {
+  const auto axis = std::find_if(planes.begin(), planes.end(), [](const CuttingPlane& p) { return p.mirrorAxis; });
+  if (axis == planes.end()) return false;
+  std::vector<const CuttingPlane*> limb;
+  for (const CuttingPlane& p : planes)
+    if (p.family == "limb") limb.push_back(&p);
+  if (limb.size() < 2) return false;
+  double best = INFINITY;
+  c = axis->origin;
+  for (const Vec3& candidate : {axis->xAxis, axis->yAxis}) {
+    const Vec3 u = candidate.normalized();
+    double sum = 0.0;
+    for (const CuttingPlane* p : limb) {
+      const Vec3 m = p->origin - 2.0 * (p->origin - c).dot(u) * u;
+      double nearest = INFINITY;
+      for (const CuttingPlane* q : limb)
+        if (q->familyIndex != p->familyIndex) nearest = std::min(nearest, (m - q->origin).squaredNorm());
+      sum += std::isfinite(nearest) ? nearest : 0.0;
+    }
+    if (sum < best) best = sum, n = u;
+  }
+  return true;
+}
+
+// True when chain b is chain a's mirror twin: a limb chain of the same family on another limb whose real bumps' centres,
+// mirrored through the skeleton's mirror plane (point c, unit normal n), lie within `reach` times the larger of the two
+// chains' mean semi-axis a of the other's centres, at least half of them both ways (the same belly on the other side).
+bool mirrorTwin(const MuscleChain& a, const MuscleChain& b, const std::vector<SectionBumps>& sections, const Vec3& c,
+                const Vec3& n, double reach) {
+  if (a.family != b.family || a.familyIndex == b.familyIndex) return false;
+  auto centres = [&](const MuscleChain& chain, bool mirrored, double& meanA) {
+    std::vector<Vec3> out;
+    meanA = 0.0;
+    for (const ChainLink& l : chain.links) {
+      if (l.bump < 0) continue;
+      Vec3 p = planePoint(sections[l.section].plane, l.ellipse.center);
+      if (mirrored) p -= 2.0 * (p - c).dot(n) * n;
+      out.push_back(p);
+      meanA += l.ellipse.a;
+    }
+    if (!out.empty()) meanA /= out.size();
+    return out;
+  };
+  double aA = 0.0, aB = 0.0;
+  const std::vector<Vec3> pa = centres(a, true, aA), pb = centres(b, false, aB);
+  if (pa.empty() || pb.empty()) return false;
+  const double tol = reach * std::max(aA, aB);
+  auto mostlyNear = [&](const std::vector<Vec3>& from, const std::vector<Vec3>& to) {
+    int near = 0;
+    for (const Vec3& p : from) {
+      double best = INFINITY;
+      for (const Vec3& q : to) best = std::min(best, (p - q).norm());
+      near += best <= tol;
+    }
+    return 2 * near >= static_cast<int>(from.size());
+  };
+  return mostlyNear(pa, pb) && mostlyNear(pb, pa);
+}
+
 // Why nothing was found, from the report of a run that returned no muscle.
 std::string diagnose(const ExtractionReport& rep) {
   if (rep.activeBones == 0 || rep.planes == 0)
@@ -286,6 +348,8 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
       !(options.spindleSteepness >= 0.0 && std::isfinite(options.spindleSteepness)))
     throw InputError("spindle options: spindleEnds must be in [0, 1], spindleSections >= 0 and spindleSteepness finite "
                      "and >= 0");
+  if (!(options.twinReach >= 0.0 && std::isfinite(options.twinReach)))
+    throw InputError("twinReach must be finite and >= 0");
   if (options.bumps.baseHarmonics < 0 || options.bumps.baseHarmonics > 16)
     throw InputError("bumps.baseHarmonics must be in [0, 16], got " + std::to_string(options.bumps.baseHarmonics));
   ExtractionResult result;
@@ -495,7 +559,9 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
     evidenceScale = options.planes.spacing / (principalExtent(character.mesh.vertices) / 80.0);
   }
   std::vector<MuscleChain> kept;
-  for (MuscleChain& c : chains) {
+  std::vector<std::pair<size_t, int>> dropped;  // limb chains the floors dropped: (chain, record index or -1)
+  for (size_t ci = 0; ci < chains.size(); ++ci) {
+    MuscleChain& c = chains[ci];
     // The chain's record: its bumps along it, its shape, and (set below) the verdict.
     ChainRecord* record = nullptr;
     if (c.realSections >= 2) {
@@ -545,6 +611,8 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
       flat = count == 0 || sum < floor * count;
     }
     const bool spindle = (shortChain || flat) && record && record->spindle;
+    if ((shortChain || flat) && !spindle && !trunk)
+      dropped.emplace_back(ci, record ? static_cast<int>(record - rep.chainRecords.data()) : -1);
     if (shortChain && !spindle) {
       drop(rep.droppedShort, "short");
       continue;
@@ -559,7 +627,33 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
     }
     rep.spindles += spindle;
     if (spindle) record->verdict = "spindle";
-    kept.push_back(std::move(c));
+    kept.push_back(c);
+  }
+  // Mirror twins (ExtractionOptions::twinReach): on a mirrored body a limb chain the floors dropped is kept when its
+  // twin on the other limb passed them (the same belly seen twice; the floors decided on one side's sampling).
+  Vec3 mc, mn;
+  if (options.twinReach > 0 && mirrorPlane(planes, mc, mn)) {
+    const size_t passed = kept.size();
+    for (const auto& [ci, ri] : dropped) {
+      const MuscleChain& c = chains[ci];
+      bool twin = false;
+      for (size_t k = 0; k < passed && !twin; ++k) {
+        if (kept[k].forced || !mirrorTwin(kept[k], c, sections, mc, mn, options.twinReach)) continue;
+        // Only a missing pair member: not when a kept chain on this chain's limb is that chain's twin already.
+        twin = true;
+        for (size_t j = 0; j < passed && twin; ++j)
+          twin = !(j != k && kept[j].familyIndex == c.familyIndex &&
+                   mirrorTwin(kept[k], kept[j], sections, mc, mn, options.twinReach));
+      }
+      if (!twin) continue;
+      ++rep.twins;
+      if (ri >= 0) {
+        ChainRecord& r = rep.chainRecords[ri];
+        (r.verdict == "short" ? rep.droppedShort : rep.droppedFlat) -= 1;
+        r.verdict = "twin";
+      }
+      kept.push_back(c);
+    }
   }
   rep.timings.push_back({"link", secondsSince(t0)});
 

@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cmath>
 #include <tuple>
+#include <utility>
 
 #include "muscles/muscle_util.h"
 #include "myoskin/extraction.h"
@@ -9,13 +10,14 @@
 namespace myoskin {
 
 ExtractionAccuracy measureExtraction(const std::vector<Muscle>& found, const std::vector<TrueMuscle>& truth,
-                                     double minCoverage) {
+                                     double minCoverage, double visibleReliefShare) {
   ExtractionAccuracy acc;
   acc.trueMuscles = static_cast<int>(truth.size());
   acc.foundMuscles = static_cast<int>(found.size());
   acc.matchOfTrue.assign(truth.size(), -1);
+  acc.coverageOfTrue.assign(truth.size(), 0.0);
 
-  // Coverage of each true muscle by each found muscle: the fraction of the true length whose samples lie
+  // Coverage of each true muscle by each found muscle: the fraction of the true visible length whose samples lie
   // within half the true peak radius of the found root curve.
   std::vector<std::tuple<double, int, int>> candidates;  // (-coverage, true, found)
   for (int t = 0; t < acc.trueMuscles; ++t) {
@@ -24,20 +26,30 @@ ExtractionAccuracy measureExtraction(const std::vector<Muscle>& found, const std
     double peak = tm.peakRadius;
     for (double r : tm.radius) peak = std::max(peak, r);
     const double tol = 0.5 * peak;
-    const double length = detail::polylineLength(tm.centerLine);
+    const bool hasRelief = tm.relief.size() == tm.centerLine.size();
+    const double reliefFloor =
+        hasRelief ? visibleReliefShare * *std::max_element(tm.relief.begin(), tm.relief.end()) : 0.0;
+    // Dense samples of the true line: (position, length it stands for), the visible ones only.
+    std::vector<std::pair<Vec3, double>> samples;
+    double length = 0.0;
+    for (size_t i = 0; i + 1 < tm.centerLine.size(); ++i) {
+      const Vec3 &p = tm.centerLine[i], &q = tm.centerLine[i + 1];
+      const double seg = (q - p).norm();
+      const int sub = std::max(1, static_cast<int>(std::ceil(seg / (0.25 * tol + 1e-12))));
+      for (int j = 0; j < sub; ++j) {
+        const double u = (j + 0.5) / sub;
+        if (hasRelief && (1 - u) * tm.relief[i] + u * tm.relief[i + 1] < reliefFloor) continue;
+        samples.emplace_back(p + (q - p) * u, seg / sub);
+        length += seg / sub;
+      }
+    }
     if (!(length > 0)) continue;
     for (int f = 0; f < acc.foundMuscles; ++f) {
       double covered = 0;
-      for (size_t i = 0; i + 1 < tm.centerLine.size(); ++i) {
-        const Vec3 &p = tm.centerLine[i], &q = tm.centerLine[i + 1];
-        const double seg = (q - p).norm();
-        const int sub = std::max(1, static_cast<int>(std::ceil(seg / (0.25 * tol + 1e-12))));
-        for (int j = 0; j < sub; ++j) {
-          const Vec3 x = p + (q - p) * ((j + 0.5) / sub);
-          if (detail::distanceToPolyline(x, found[f].rootCurve) <= tol) covered += seg / sub;
-        }
-      }
+      for (const auto& [x, w] : samples)
+        if (detail::distanceToPolyline(x, found[f].rootCurve) <= tol) covered += w;
       const double coverage = covered / length;
+      acc.coverageOfTrue[t] = std::max(acc.coverageOfTrue[t], coverage);
       if (coverage >= minCoverage) candidates.emplace_back(-coverage, t, f);
     }
   }
