@@ -119,7 +119,7 @@ def hybrid_weights(core, character, rig, max_influences=8):
 # Volume blend: a second Armature modifier (Preserve Volume, Multi Modifier) mixed over a vertex group
 # ------------------------------------------------------------------------------------------------
 
-VOLUME_BLEND_GROUP = "myoskin_dqs_share"      # vertex group: weight 1 - s, s the vertex's dual-quaternion share
+VOLUME_BLEND_GROUP = "myoskin_dqs_share"      # vertex group: the dual-quaternion share s (3.x: 1 - s)
 VOLUME_BLEND_MODIFIER = "Myoskin Volume Blend"  # the second Armature modifier Bind adds
 
 
@@ -161,16 +161,26 @@ def _move_modifier(skin, mod, index):
         bpy.ops.object.modifier_move_to_index(modifier=mod.name, index=index)
 
 
+def _group_weight_is_linear_share():
+    """Whether this Blender's Multi Modifier takes the group's weight as the PREVIOUS modifier's share (3.x: measured on
+    3.4.1) or as its own (4.x, 5.x: measured on 4.3, 4.5 and 5.2; the switch is placed at 4.0)."""
+    return bpy.app.version < (4, 0, 0)
+
+
 def write_share_group(skin, share):
-    """The share group on the mesh from #V dual-quaternion shares s: Blender's Multi Modifier takes the group's weight
-    as the PREVIOUS (linear) modifier's share (measured on 3.4.1: weight 0, or a vertex not in the group, gives the
-    second modifier's dual quaternions, weight 1 the linear skin), so each vertex with s < 1 gets weight 1 - s
-    (float32 in Blender) and the others stay out of the group."""
+    """The share group on the mesh from #V dual-quaternion shares s. Blender 3.x's Multi Modifier takes the group's
+    weight as the PREVIOUS (linear) modifier's share (weight 0, or a vertex not in the group, gives the second
+    modifier's dual quaternions), so each vertex with s < 1 gets weight 1 - s and the others stay out; 4.x and 5.x
+    take it as the second modifier's own share, so each vertex with s > 0 gets weight s (float32 in Blender)."""
     group = skin.vertex_groups.get(VOLUME_BLEND_GROUP) or skin.vertex_groups.new(name=VOLUME_BLEND_GROUP)
     group.remove(list(range(len(skin.data.vertices))))
     share = np.asarray(share, dtype=np.float64)
-    ids = np.flatnonzero(share < 1.0)
-    values = 1.0 - share[ids]
+    if _group_weight_is_linear_share():
+        ids = np.flatnonzero(share < 1.0)
+        values = 1.0 - share[ids]
+    else:
+        ids = np.flatnonzero(share > 0.0)
+        values = share[ids]
     order = np.argsort(values, kind="stable")
     ids, values = ids[order], values[order]
     breaks = np.flatnonzero(np.diff(values) != 0) + 1
@@ -181,8 +191,8 @@ def write_share_group(skin, share):
 
 
 def read_share_group(skin):
-    """#V float64 dual-quaternion shares s = 1 - the group's weight, as Blender mixes them (1 where a vertex is not in
-    the group), or None without the group."""
+    """#V float64 dual-quaternion shares s as this Blender mixes them from the group (write_share_group), or None
+    without the group."""
     group = skin.vertex_groups.get(VOLUME_BLEND_GROUP)
     if group is None:
         return None
@@ -192,12 +202,12 @@ def read_share_group(skin):
         for g in v.groups:
             if g.group == index:
                 weight[v.index] = g.weight
-    return 1.0 - weight
+    return 1.0 - weight if _group_weight_is_linear_share() else weight
 
 
 def add_volume_blend(skin, arm, share):
     """Volume blend on a bound mesh: the first Armature modifier linear, then right after it a second one on the
-    same armature with Preserve Volume and Multi Modifier over the share group (weight 1 - s), which Blender mixes as
+    same armature with Preserve Volume and Multi Modifier over the share group (write_share_group), which Blender mixes as
     (1 - s) * linear + s * dual quaternions per vertex. Returns the second modifier."""
     first = armature_modifier(skin, arm)
     write_share_group(skin, share)
