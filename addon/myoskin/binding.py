@@ -97,14 +97,7 @@ def restore_weights(skin):
             else:
                 group = skin.vertex_groups.new(name=name)
         group.remove(everyone)
-        ids = np.asarray(entry["vertices"], dtype=np.int64)
-        ws = np.asarray(entry["weights"], dtype=np.float64)
-        order = np.argsort(ws, kind="stable")
-        ids, ws = ids[order], ws[order]
-        breaks = np.flatnonzero(np.diff(ws) != 0) + 1
-        for a, b in zip(np.concatenate(([0], breaks)), np.concatenate((breaks, [len(ws)]))):
-            if b > a:
-                group.add(ids[a:b].tolist(), float(ws[a]), 'REPLACE')
+        blender_io.add_group_weights(group, entry["vertices"], entry["weights"])
     del skin[BACKUP_KEY]
     return True
 
@@ -181,27 +174,16 @@ def write_share_group(skin, share):
     else:
         ids = np.flatnonzero(share > 0.0)
         values = share[ids]
-    order = np.argsort(values, kind="stable")
-    ids, values = ids[order], values[order]
-    breaks = np.flatnonzero(np.diff(values) != 0) + 1
-    for a, b in zip(np.concatenate(([0], breaks)), np.concatenate((breaks, [len(values)]))):
-        if b > a:
-            group.add(ids[a:b].tolist(), float(values[a]), 'REPLACE')
+    blender_io.add_group_weights(group, ids, values)
     return group
 
 
 def read_share_group(skin):
     """#V float64 dual-quaternion shares s as this Blender mixes them from the group (write_share_group), or None
     without the group."""
-    group = skin.vertex_groups.get(VOLUME_BLEND_GROUP)
-    if group is None:
+    if skin.vertex_groups.get(VOLUME_BLEND_GROUP) is None:
         return None
-    weight = np.zeros(len(skin.data.vertices))
-    index = group.index
-    for v in skin.data.vertices:
-        for g in v.groups:
-            if g.group == index:
-                weight[v.index] = g.weight
+    weight = blender_io.vertex_group_weights(skin, VOLUME_BLEND_GROUP)
     return 1.0 - weight if _group_weight_is_linear_share() else weight
 
 

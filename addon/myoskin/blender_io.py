@@ -279,6 +279,19 @@ def read_vertex_weights(mesh_obj, group_to_bone, num_vertices):
     return joints, weights
 
 
+def add_group_weights(group, vertex_ids, weights):
+    """Add vertices with their weights to one vertex group (REPLACE): VertexGroup.add takes one weight for many
+    vertices, so vertices are batched by equal weight."""
+    ids = np.asarray(vertex_ids, dtype=np.int64)
+    ws = np.asarray(weights, dtype=np.float64)
+    order = np.argsort(ws, kind="stable")
+    ids, ws = ids[order], ws[order]
+    breaks = np.flatnonzero(np.diff(ws) != 0) + 1
+    for a, b in zip(np.concatenate(([0], breaks)), np.concatenate((breaks, [len(ws)]))):
+        if b > a:
+            group.add(ids[a:b].tolist(), float(ws[a]), 'REPLACE')
+
+
 def vertex_group_weights(mesh_obj, name):
     """#V float64 weights of one vertex group (0 for vertices outside it; all 0 without the group)."""
     out = np.zeros(len(mesh_obj.data.vertices))
