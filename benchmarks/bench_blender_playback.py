@@ -9,7 +9,8 @@ animated elbow + shoulder on the synthetic arm at ~50k vertices, in one run:
                        evaluates twice (the route for IK / constraint-driven skeletons)
     bound, live+surf   the same with the muscle surfaces shown (written every frame)
     bound, baked       muscle joints baked to the Action, live update off (what a farm / no add-on plays)
-    bound, baked, linear  the same with Preserve Volume off (linear blending, as the paper)
+    bound, baked, linear  the same with the Volume Blend off (linear blending, as the paper)
+    bound, baked, 4 infl.  bound with Max Influences 4 instead of 8, baked (Volume Blend on)
     bound, PC2 cache   the skin baked to a PC2 by the core and played by a Mesh Cache modifier, the Armature
                        modifier muted (Bake PC2 with Add Mesh Cache Modifier; no add-on needed to play)
     anchored, live     Bind with the Anchored Skin deformer: the core's AnchoredSkin per frame, written as offsets
@@ -91,6 +92,12 @@ def add_character(core, blender_io, scene, name, rings, frames):
     return arm, skin
 
 
+def mean_influences(skin):
+    """Mean bones + muscle joints per vertex with weight > 0 (the volume blend's groups are no influence)."""
+    skip = {skin.vertex_groups[n].index for n in addon_module("binding").MIX_GROUPS if n in skin.vertex_groups}
+    return float(np.mean([sum(g.weight > 0 for g in v.groups if g.group not in skip) for v in skin.data.vertices]))
+
+
 def main():
     args = parse_args()
     blender_io, core_loader = (addon_module(n) for n in ("blender_io", "core_loader"))
@@ -100,7 +107,7 @@ def main():
     plain_scene = bpy.data.scenes.new("SkeletonOnly")
     for scene in (bound_scene, plain_scene):
         scene.frame_start, scene.frame_end = 1, args.frames
-    add_character(core, blender_io, plain_scene, "PlainArm", args.rings, args.frames)
+    _plain_arm, plain_skin = add_character(core, blender_io, plain_scene, "PlainArm", args.rings, args.frames)
     arm, skin = add_character(core, blender_io, bound_scene, "BoundArm", args.rings, args.frames)
     bpy.context.view_layer.objects.active = skin
     assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
@@ -112,18 +119,23 @@ def main():
     joints = len(__import__("json").loads(state.bind_text.as_string())["joint_names"])
     print(f"bench_blender_playback: {len(skin.data.vertices):,} vertices, {len(arm.data.bones) - joints} "
           f"bones + {joints} muscle joints ({len(state.muscles)} muscles), {args.frames} frames; bind "
-          f"{bind_seconds:.2f} s; {args.repeats} interleaved passes, per-frame best", flush=True)
+          f"{bind_seconds:.2f} s; {args.repeats} interleaved passes, per-frame best; influences per vertex "
+          f"{mean_influences(skin):.2f} bound, {mean_influences(plain_skin):.2f} plain", flush=True)
 
-    def bound_in_own_scene(name, deformer='JOINTS', after_bind=None):
-        """The character extracted and bound (with `deformer`) in the context scene, `after_bind(arm)` run, then
-        moved with its muscle objects into a new scene of its own (surfaces hidden); returns the scene."""
+    def bound_in_own_scene(name, deformer='JOINTS', after_bind=None, max_influences=None):
+        """The character extracted and bound (with `deformer`, `max_influences`) in the context scene,
+        `after_bind(arm)` run, then moved with its muscle objects into a new scene of its own (surfaces hidden);
+        returns the scene."""
         scene = bpy.data.scenes.new(name)
         scene.frame_start, scene.frame_end = 1, args.frames
         own_arm, own_skin = add_character(core, blender_io, bpy.context.scene, name + "Arm", args.rings, args.frames)
         bpy.context.view_layer.objects.active = own_skin
         assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
         own_arm.myoskin.deformer = deformer
+        if max_influences is not None:
+            own_arm.myoskin.max_influences = max_influences
         assert bpy.ops.myoskin.bind() == {'FINISHED'}
+        print(f"  {name}: {mean_influences(own_skin):.2f} influences per vertex", flush=True)
         if after_bind is not None:
             after_bind(own_arm)
         own_arm.myoskin.collection.hide_viewport = True
@@ -133,6 +145,9 @@ def main():
                 if coll != scene.collection:
                     coll.objects.unlink(obj)
         return scene
+
+    def baked(own_arm):
+        assert bpy.ops.myoskin.bake_action(frame_start=1, frame_end=args.frames) == {'FINISHED'}
 
     def bake_to_pc2(own_arm):
         import tempfile
@@ -144,6 +159,7 @@ def main():
     # The skin baked to a PC2 that a Mesh Cache modifier plays; the character bound with the anchored deformer.
     cached_scene = bound_in_own_scene("Cached", after_bind=bake_to_pc2)
     anchored_scene = bound_in_own_scene("Anchored", deformer='ANCHORED')
+    four_scene = bound_in_own_scene("FourInfluences", after_bind=baked, max_influences=4)
 
     # The plain character with Preserve Volume (what Bind sets by default), to separate the dual-quaternion
     # blend's own cost from Myoskin's.
@@ -157,17 +173,22 @@ def main():
     constraint = arm.pose.bones["forearm"].constraints.new('LIMIT_ROTATION')  # x towards 0 by 2 %
     constraint.use_limit_x, constraint.min_x, constraint.max_x, constraint.influence = True, 0.0, 0.0, 0.02
 
-    armature_mod = next(m for m in skin.modifiers if m.type == 'ARMATURE')
+    binding = addon_module("binding")
+    first_mod, blend_mod = binding.armature_modifier(skin, arm), binding.volume_blend_modifier(skin, arm)
+    first_group = first_mod.vertex_group
 
-    def configure(live, surfaces, constrained=False, preserve_volume=True):
+    def configure(live, surfaces, constrained=False, volume_blend=True):
+        """The bound scene's settings; without the volume blend, its second modifier off and the first one over
+        the whole skin (as Bind leaves a rig bound with Volume Blend off)."""
         state.live = live
         state.collection.hide_viewport = not surfaces
         constraint.mute = not constrained
-        armature_mod.use_deform_preserve_volume = preserve_volume
+        blend_mod.show_viewport = volume_blend
+        first_mod.vertex_group = first_group if volume_blend else ""
 
     cases = [("bound, live", (True, False)), ("bound, live, 2-pass", (True, False, True)),
              ("bound, live+surfaces", (True, True)), ("bound, baked", (False, False)),
-             ("bound, baked, linear", (False, False, False, False)),
+             ("bound, baked, linear", (False, False, False, False)), ("bound, baked, 4 infl.", four_scene),
              ("bound, PC2 cache", cached_scene), ("anchored, live", anchored_scene),
              ("plain, Preserve Volume", pv_scene)]
     passes = {name: [] for name, _c in cases}

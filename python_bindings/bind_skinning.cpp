@@ -192,7 +192,7 @@ void bindSkinning(py::module_& m) {
   m.def(
       "compute_dqs_share",
       [](const Character& c, double bendDegrees, double bandRadius, double keepTolerance, double minBlend,
-         const py::object& up,
+         double unblendedShare, const py::object& up,
          bool withJoints) -> py::object {
         if (!c.hasWeights()) throw InputError("compute_dqs_share: character '" + c.name + "' has no skin weights");
         VolumeBlendOptions o;
@@ -200,6 +200,7 @@ void bindSkinning(py::module_& m) {
         o.bandRadius = bandRadius;
         o.keepTolerance = keepTolerance;
         o.minBlend = minBlend;
+        o.unblendedShare = unblendedShare;
         if (!up.is_none()) {
           const DoubleArray a = up.cast<DoubleArray>();
           if (a.size() != 3) throw InputError("up must be 3 numbers, got shape " + shapeOf(a));
@@ -232,12 +233,13 @@ void bindSkinning(py::module_& m) {
       py::arg("character"), py::kw_only(), py::arg("bend_degrees") = VolumeBlendOptions{}.bendDegrees,
       py::arg("band_radius") = VolumeBlendOptions{}.bandRadius,
       py::arg("keep_tolerance") = VolumeBlendOptions{}.keepTolerance, py::arg("min_blend") = VolumeBlendOptions{}.minBlend,
-      py::arg("up") = py::none(), py::arg("with_joints") = false,
+      py::arg("unblended_share") = VolumeBlendOptions{}.unblendedShare, py::arg("up") = py::none(),
+      py::arg("with_joints") = false,
       "Volume blend: #V dual-quaternion shares in [0, 1] (Skinner's dqs_share) from the character's skeleton, skeleton "
       "weights and rest skin: per real joint the share whose band (band_radius joint radii) keeps its volume at a "
       "flexion of bend_degrees (the largest within keep_tolerance x linear's change of the best; forward; backward at knees; up: the body's up axis, None = +Y if the skin is taller "
       "along Y than Z, else +Z; the character's left is +X), each vertex the blend-weighted mean over the joints its weights blend across (min_blend), "
-      "1 elsewhere. with_joints=True also returns one dict per joint (bone, radius, share, linear_change, "
+      "1 across twist splits only or inside a joint's band, unblended_share (0: linear) elsewhere. with_joints=True also returns one dict per joint (bone, radius, share, linear_change, "
       "dual_quat_change, blend_change, ...).");
 
   m.def(

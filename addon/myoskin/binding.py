@@ -114,6 +114,8 @@ def hybrid_weights(core, character, rig, max_influences=8):
 
 VOLUME_BLEND_GROUP = "myoskin_dqs_share"      # vertex group: the dual-quaternion share s (3.x: 1 - s)
 VOLUME_BLEND_MODIFIER = "Myoskin Volume Blend"  # the second Armature modifier Bind adds
+LINEAR_GROUP = "myoskin_linear"               # vertex group of the first modifier: the vertices with s < 1
+MIX_GROUPS = (VOLUME_BLEND_GROUP, LINEAR_GROUP)  # the volume blend's vertex groups: no bone, no influence
 
 
 def is_volume_blend_modifier(mod):
@@ -164,7 +166,10 @@ def write_share_group(skin, share):
     """The share group on the mesh from #V dual-quaternion shares s. Blender 3.x's Multi Modifier takes the group's
     weight as the PREVIOUS (linear) modifier's share (weight 0, or a vertex not in the group, gives the second
     modifier's dual quaternions), so each vertex with s < 1 gets weight 1 - s and the others stay out; 4.x and 5.x
-    take it as the second modifier's own share, so each vertex with s > 0 gets weight s (float32 in Blender)."""
+    take it as the second modifier's own share, so each vertex with s > 0 gets weight s (float32 in Blender).
+    Also writes the linear group (weight 1 on the vertices with s < 1): the first modifier deforms only those, since
+    the second one's dual quaternions replace the others whole (the mix takes 0 of the previous result), which
+    spares Blender one of its two skinning passes on most of the skin (same result to the bit)."""
     group = skin.vertex_groups.get(VOLUME_BLEND_GROUP) or skin.vertex_groups.new(name=VOLUME_BLEND_GROUP)
     group.remove(list(range(len(skin.data.vertices))))
     share = np.asarray(share, dtype=np.float64)
@@ -175,6 +180,10 @@ def write_share_group(skin, share):
         ids = np.flatnonzero(share > 0.0)
         values = share[ids]
     blender_io.add_group_weights(group, ids, values)
+    linear = skin.vertex_groups.get(LINEAR_GROUP) or skin.vertex_groups.new(name=LINEAR_GROUP)
+    linear.remove(list(range(len(skin.data.vertices))))
+    needed = np.flatnonzero(share < 1.0)
+    blender_io.add_group_weights(linear, needed, np.ones(len(needed)))
     return group
 
 
@@ -188,9 +197,10 @@ def read_share_group(skin):
 
 
 def add_volume_blend(skin, arm, share):
-    """Volume blend on a bound mesh: the first Armature modifier linear, then right after it a second one on the
-    same armature with Preserve Volume and Multi Modifier over the share group (write_share_group), which Blender mixes as
-    (1 - s) * linear + s * dual quaternions per vertex. Returns the second modifier."""
+    """Volume blend on a bound mesh: the first Armature modifier linear (over the linear group when the artist gave it
+    no vertex group of its own), then right after it a second one on the same armature with Preserve Volume and Multi
+    Modifier over the share group (write_share_group), which Blender mixes as (1 - s) * linear + s * dual quaternions
+    per vertex. Returns the second modifier."""
     first = armature_modifier(skin, arm)
     write_share_group(skin, share)
     mod = volume_blend_modifier(skin, arm)
@@ -204,19 +214,25 @@ def add_volume_blend(skin, arm, share):
     mod.invert_vertex_group = False
     mod.show_viewport, mod.show_render = bool(first.show_viewport), bool(first.show_render)
     first.use_deform_preserve_volume = False
+    if first.vertex_group in ("", LINEAR_GROUP):
+        first.vertex_group, first.invert_vertex_group = LINEAR_GROUP, False
     _move_modifier(skin, mod, list(skin.modifiers).index(first) + 1)
     return mod
 
 
 def remove_volume_blend(skin, arm):
-    """Unbind: remove the volume blend's modifier and share group (the first modifier's Preserve Volume is
-    restored by the caller from the bind record)."""
+    """Unbind: remove the volume blend's modifier, share group and linear group, and give the first modifier its
+    whole skin back (its Preserve Volume is restored by the caller from the bind record)."""
     mod = volume_blend_modifier(skin, arm)
     if mod is not None:
         skin.modifiers.remove(mod)
-    group = skin.vertex_groups.get(VOLUME_BLEND_GROUP)
-    if group is not None:
-        skin.vertex_groups.remove(group)
+    first = armature_modifier(skin, arm)
+    if first is not None and first.vertex_group == LINEAR_GROUP:
+        first.vertex_group = ""
+    for name in (VOLUME_BLEND_GROUP, LINEAR_GROUP):
+        group = skin.vertex_groups.get(name)
+        if group is not None:
+            skin.vertex_groups.remove(group)
 
 
 def bind(context, skins, arm):

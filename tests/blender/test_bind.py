@@ -81,10 +81,9 @@ def core_skin(arm, skin, state):
 # ------------------------------------------------------------------------------------------------
 
 def influence_counts(skin):
-    """Bones and muscle joints per vertex (the volume blend's share group is no influence)."""
-    share = skin.vertex_groups.get(module("binding").VOLUME_BLEND_GROUP)
-    skip = share.index if share is not None else -1
-    return np.array([sum(g.weight > 0 for g in v.groups if g.group != skip) for v in skin.data.vertices])
+    """Bones and muscle joints per vertex (the volume blend's share and linear groups are no influence)."""
+    skip = {skin.vertex_groups[n].index for n in module("binding").MIX_GROUPS if n in skin.vertex_groups}
+    return np.array([sum(g.weight > 0 for g in v.groups if g.group not in skip) for v in skin.data.vertices])
 
 
 def test_max_influences_caps_every_vertex_and_blender_still_equals_the_core():
@@ -126,7 +125,11 @@ def test_bind_creates_joint_bones_weights_and_keeps_the_modifier():
     # the character's own modifier, then (Volume Blend, the default) the blend's second one
     assert len(mods) == 2 and mods[0].object == arm and not binding.is_volume_blend_modifier(mods[0])
     assert binding.is_volume_blend_modifier(mods[1]) and mods[1].object == arm
-    weights.pop(binding.VOLUME_BLEND_GROUP)  # no influence: 1 - each vertex's dual-quaternion share
+    # the first modifier deforms the vertices the blend mixes linear into (its linear group, weight 1)
+    assert mods[0].vertex_group == binding.LINEAR_GROUP and not mods[0].invert_vertex_group
+    share, linear = weights.pop(binding.VOLUME_BLEND_GROUP), weights.pop(binding.LINEAR_GROUP)  # no influences
+    assert linear and set(linear.values()) == {1.0} and len(linear) < len(skin.data.vertices), len(linear)
+    assert share and all(0.0 < w <= 1.0 for w in share.values())
     # every vertex's weights still sum to 1 (skeleton + muscles)
     total = np.zeros(len(skin.data.vertices))
     for group in weights.values():

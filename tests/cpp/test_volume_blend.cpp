@@ -232,6 +232,77 @@ TEST(VolumeBlend, BipedSharesAreInRangeRestIsExactAndTheKneeKeepsItsVolume) {
   EXPECT_LE(std::abs(change(blend)), std::abs(change(dq)) + 1e-3);
 }
 
+TEST(VolumeBlend, SkinAwayFromEveryJointIsLinearAndTheBandsAreUntouched) {
+  // unblendedShare: skin outside every real joint's band that no joint blends across goes linear (Blender then skips
+  // the second Armature modifier there); the bands keep exactly the shares they had with 1 there.
+  SyntheticBodyOptions bo;
+  bo.seed = 24;  // held out
+  bo.muscleScale = 0.0;
+  const Character c = makeSyntheticBody(bo).character;
+  VolumeBlendOptions everywhere;
+  everywhere.unblendedShare = 1.0;
+  std::vector<JointVolumeBlend> joints;
+  const Eigen::VectorXd share = computeDqsShare(c.skeleton, c.weights, c.mesh, {}, &joints);
+  const Eigen::VectorXd before = computeDqsShare(c.skeleton, c.weights, c.mesh, everywhere);
+  ASSERT_FALSE(joints.empty());
+  const double reach = VolumeBlendOptions{}.bandRadius * joints.front().radius;
+  int linear = 0, changed = 0;
+  for (int v = 0; v < c.mesh.numVertices(); ++v) {
+    if (share[v] == before[v]) continue;
+    ++changed;
+    EXPECT_EQ(share[v], 0.0);
+    EXPECT_EQ(before[v], 1.0);
+    for (const JointVolumeBlend& j : joints)  // never inside a measured joint's band
+      EXPECT_GT((c.mesh.vertices.row(v).transpose() - c.skeleton.bones[j.bone].head).norm(), reach);
+  }
+  for (int v = 0; v < c.mesh.numVertices(); ++v) linear += share[v] == 0.0;
+  std::printf("biped seed 24: %d of %d vertices linear (%d were dual quaternions with unblendedShare 1)\n", linear,
+              c.mesh.numVertices(), changed);
+  EXPECT_GT(changed, c.mesh.numVertices() / 10);  // a real share of the body leaves the second modifier
+}
+
+TEST(VolumeBlend, TwistSplitBlendsKeepDualQuaternions) {
+  // A collinear child inside the forearm (a twist split) blended over its whole length: those vertices keep share 1.
+  Character c = makeSyntheticArm().character;
+  const int forearm = c.skeleton.find("forearm");
+  ASSERT_GE(forearm, 0);
+  Bone twistBone = c.skeleton.bones[forearm];
+  const Vec3 mid = 0.5 * (twistBone.head + twistBone.tail);
+  twistBone.name = "forearm_twist";
+  twistBone.parent = forearm;
+  twistBone.head = mid;
+  twistBone.rest.block<3, 1>(0, 3) = mid;
+  c.skeleton.bones[forearm].tail = mid;
+  const int twistIndex = c.skeleton.numBones();
+  c.skeleton.bones.push_back(twistBone);
+  const Vec3 axis = (twistBone.tail - c.skeleton.bones[forearm].head).normalized();
+  const double length = (twistBone.tail - c.skeleton.bones[forearm].head).norm();
+  int moved = 0;
+  for (int v = 0; v < c.mesh.numVertices(); ++v)
+    for (int k = 0; k < c.weights.influences(); ++k) {
+      if (c.weights.joints(v, k) != forearm || c.weights.weights(v, k) < 0.999) continue;
+      const double t = axis.dot(c.mesh.vertices.row(v).transpose() - c.skeleton.bones[forearm].head) / length;
+      if (t < 0.3 || t > 0.7 || k + 1 >= c.weights.influences() || c.weights.joints(v, k + 1) >= 0) continue;
+      c.weights.weights(v, k) = 1.0 - t;  // blended along the forearm onto the twist bone
+      c.weights.joints(v, k + 1) = twistIndex;
+      c.weights.weights(v, k + 1) = t;
+      ++moved;
+    }
+  ASSERT_GT(moved, 100);
+  std::vector<JointVolumeBlend> joints;
+  const Eigen::VectorXd share = computeDqsShare(c.skeleton, c.weights, c.mesh, {}, &joints);
+  ASSERT_FALSE(joints.empty());
+  for (const JointVolumeBlend& j : joints) ASSERT_NE(j.bone, twistIndex);  // a twist split, not a joint
+  int twisted = 0;
+  for (int v = 0; v < c.mesh.numVertices(); ++v)
+    for (int k = 0; k < c.weights.influences(); ++k)
+      if (c.weights.joints(v, k) == twistIndex && c.weights.weights(v, k) > 0.1 && c.weights.weights(v, k) < 0.9) {
+        ++twisted;
+        EXPECT_EQ(share[v], 1.0);
+      }
+  EXPECT_GT(twisted, 50);
+}
+
 TEST(VolumeBlend, BadInputToTheSharesIsRejected) {
   const Character c = makeSyntheticArm().character;
   VolumeBlendOptions o;

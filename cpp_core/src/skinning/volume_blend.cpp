@@ -35,6 +35,8 @@ void validate(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin, 
     throw InputError("volume blend: keepTolerance must be in [0, 1], got " + std::to_string(o.keepTolerance));
   if (!(o.minBlend > 0.0 && o.minBlend <= 1.0))
     throw InputError("volume blend: minBlend must be in (0, 1], got " + std::to_string(o.minBlend));
+  if (!(o.unblendedShare >= 0.0 && o.unblendedShare <= 1.0))
+    throw InputError("volume blend: unblendedShare must be in [0, 1], got " + std::to_string(o.unblendedShare));
   validateSkeleton(skeleton);
   if (skin.numVertices() == 0) throw InputError("volume blend: the skin has no vertices");
   if (!skin.vertices.allFinite()) throw InputError("volume blend: the skin has a NaN or infinite vertex");
@@ -195,8 +197,11 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
   auto direction = [&](int b) { return Vec3((joined.bones[b].tail - joined.bones[b].head).normalized()); };
   std::vector<char> inSubtree(nb);
   Eigen::VectorXd blend(nv);
+  std::vector<char> twisted(nv, 0);    // blended across a twist split (b >= minBlend)
+  std::vector<char> nearJoint(nv, 0);  // in a real joint's band (bandRadius limb radii of its head)
+  const double reach = options.bandRadius * limbRadius;
   for (int c = 0; c < nb; ++c) {
-    if (skeleton.bones[c].parent < 0 || twist[c]) continue;
+    if (skeleton.bones[c].parent < 0) continue;
     for (int b = 0; b < nb; ++b) inSubtree[b] = b == c || (skeleton.bones[b].parent >= 0 && inSubtree[skeleton.bones[b].parent]);
     // b = 2 min(inside, outside) per vertex (weights normalised; rest vertices 0).
     bool anyBlend = false;
@@ -206,8 +211,10 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
         if (w.joints(v, k) >= 0 && inSubtree[w.joints(v, k)]) inside += w.weights(v, k);
       blend[v] = total[v] > kRestWeightThreshold ? 2.0 * std::min(inside, total[v] - inside) / total[v] : 0.0;
       anyBlend = anyBlend || blend[v] >= options.minBlend;
+      if (twist[c] && blend[v] >= options.minBlend) twisted[v] = 1;
+      if (!twist[c] && (skin.vertices.row(v).transpose() - skeleton.bones[c].head).norm() <= reach) nearJoint[v] = 1;
     }
-    if (!anyBlend) continue;
+    if (!anyBlend || twist[c]) continue;
     // Flexion: the child swings forward (about d x facing); down a leg (downward bones, across twist splits) the
     // joints alternate from the leg's root: hip forward, knee backward, a horse's hock forward again; a child along
     // the facing (a foot) turns its tail down.
@@ -238,9 +245,10 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
         blendSum[v] += blend[v];
       }
   }
-  Eigen::VectorXd share = Eigen::VectorXd::Ones(nv);
+  Eigen::VectorXd share(nv);
   for (int v = 0; v < nv; ++v)
-    if (blendSum[v] > 0.0) share[v] = std::clamp(shareSum[v] / blendSum[v], 0.0, 1.0);
+    share[v] = blendSum[v] > 0.0 ? std::clamp(shareSum[v] / blendSum[v], 0.0, 1.0)
+                                 : (twisted[v] || nearJoint[v] ? 1.0 : options.unblendedShare);
   return share;
 }
 
