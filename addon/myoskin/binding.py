@@ -336,6 +336,43 @@ def apply_preserve_volume(arm):
     return count
 
 
+def apply_volume_blend(arm):
+    """Follow the rig's Volume Blend setting on a bound rig at once: off removes the second modifier and the linear
+    group (the share group stays, so switching back needs no Bind) and gives the first modifier the rig's Preserve
+    Volume; on adds them back from the share group. Returns the meshes that still need a Bind (bound with Volume
+    Blend off: no shares yet; the caller marks the rig edited)."""
+    state = rig_state(arm)
+    if not state.bound or state.deformer == 'ANCHORED':
+        return []
+    waiting = []
+    for skin in rig_skins(arm):
+        first = armature_modifier(skin, arm)
+        if first is None:
+            continue
+        if state.volume_blend:
+            share = read_share_group(skin)
+            if share is None:
+                waiting.append(skin.name)
+            elif volume_blend_modifier(skin, arm) is None:
+                add_volume_blend(skin, arm, share)
+            continue
+        mod = volume_blend_modifier(skin, arm)
+        if mod is not None:
+            skin.modifiers.remove(mod)
+        if first.vertex_group == LINEAR_GROUP:
+            first.vertex_group = ""
+        group = skin.vertex_groups.get(LINEAR_GROUP)
+        if group is not None:
+            skin.vertex_groups.remove(group)
+        first.use_deform_preserve_volume = state.preserve_volume
+    record, problem = read_bind_record_or_empty(arm)
+    if not problem and record and not waiting:
+        record["volume_blend"] = bool(state.volume_blend)
+        write_bind_record(arm, record)
+    runtime.forget(arm.name)
+    return waiting
+
+
 def dq_scale():
     """How this Blender's Preserve Volume carries bone scale, for the core's skinner (dq_scale=): 'blended'
     (scale matrices blended, measured on 3.4.1) or 'pivot' (add_weighted_dq_dq_pivot, measured on 4.5 and 5.2).

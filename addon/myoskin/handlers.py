@@ -111,8 +111,23 @@ def on_preserve_volume_changed(arm_obj, state):
     binding.apply_preserve_volume(arm_obj)
 
 
+def on_volume_blend_changed(arm_obj, state):
+    """Volume Blend toggled: a bound rig's modifiers follow at once; a rig bound with it off has no shares yet, so
+    it binds again (Auto Rebind's timer; marked edited, and a message says so, when Auto Rebind is off)."""
+    waiting = binding.apply_volume_blend(arm_obj)
+    if not waiting:
+        return
+    state.dirty = True
+    if state.auto_rebind:
+        schedule_rebind(arm_obj.name)
+    else:
+        runtime.report_error(arm_obj, f"Volume Blend on '{arm_obj.name}' needs a Bind: it was bound without the "
+                                      f"volume blend's shares ({', '.join(waiting)})")
+
+
 CALLBACKS = {"settings_changed": on_settings_changed, "renamed": muscle_io.on_renamed,
-             "live_changed": live.on_live_changed, "preserve_volume_changed": on_preserve_volume_changed}
+             "live_changed": live.on_live_changed, "preserve_volume_changed": on_preserve_volume_changed,
+             "volume_blend_changed": on_volume_blend_changed}
 
 
 def register():

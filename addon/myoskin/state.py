@@ -96,6 +96,14 @@ def _preserve_volume_changed(self, context):
         runtime.report_error(arm_obj, f"could not switch Preserve Volume of '{arm_obj.name}': {e}")
 
 
+def _volume_blend_changed(self, context):
+    arm_obj = self.id_data
+    try:
+        runtime.dispatch("volume_blend_changed", arm_obj, self)
+    except Exception as e:  # noqa: BLE001
+        runtime.report_error(arm_obj, f"could not switch Volume Blend of '{arm_obj.name}': {e}")
+
+
 def _live_changed(self, context):
     arm_obj = self.id_data
     try:
@@ -194,13 +202,13 @@ class MyoskinRigState(bpy.types.PropertyGroup):
                     "character's Armature modifiers (at once when bound) and Bake PC2 computes the same mode "
                     "in the core. Off: linear blending, as the paper")
     volume_blend: BoolProperty(
-        name="Volume Blend", default=True,
+        name="Volume Blend", default=True, update=_volume_blend_changed,
         description="Mix the linear and the dual-quaternion skin per vertex so bent joints keep their volume: "
                     "Preserve Volume's dual quaternions where they keep it (elbows, shoulders), less where they "
                     "over-inflate (hips, some knees). Bind writes the share as the vertex group "
                     "'myoskin_dqs_share' and adds a second Armature modifier (Preserve Volume, Multi Modifier) "
-                    "after the first, which turns linear; Unbind removes both. Overrides Preserve Volume; takes "
-                    "effect at the next Bind (Muscle Joints deformer)")
+                    "after the first, which turns linear; Unbind removes both. Overrides Preserve Volume; a bound "
+                    "rig follows at once (one bound with it off binds again first; Muscle Joints deformer)")
     deformer: EnumProperty(
         name="Deformer", default='JOINTS',
         items=(('JOINTS', "Muscle Joints", "The paper's Equation 3: the muscle joints are deform bones blended with "

@@ -225,6 +225,48 @@ def test_volume_blend_bind_writes_the_group_and_a_second_modifier_and_blender_eq
     assert max(errors) < TOLERANCE, errors
 
 
+def test_volume_blend_switches_on_a_bound_rig_at_once_and_blender_still_equals_the_core():
+    """Volume Blend toggled on a bound rig: off removes the second modifier and the linear group at once (the first
+    modifier takes the rig's Preserve Volume over the whole skin), on adds them back from the share group, Blender
+    equals the core in each mode; a rig bound with it off has no shares, so switching it on binds again."""
+    binding, handlers, runtime = module("binding"), module("handlers"), module("runtime")
+    arm, skin, state = bound_arm(preserve_volume=False, volume_blend=True)
+    first = binding.armature_modifier(skin, arm)
+    share = binding.read_share_group(skin)
+    assert share is not None and first.vertex_group == binding.LINEAR_GROUP
+    set_pose(arm, {"forearm": (110.0, 0.0, 0.0), "upper_arm": (0.0, 0.0, 40.0)})
+    size = size_of(skin)
+    for on in (False, True, False, True):
+        state.volume_blend = on
+        assert (binding.volume_blend_modifier(skin, arm) is not None) == on
+        assert (first.vertex_group == binding.LINEAR_GROUP) == on and (binding.LINEAR_GROUP in skin.vertex_groups) == on
+        assert not first.use_deform_preserve_volume and not state.dirty  # linear: the rig's Preserve Volume is off
+        expected, _ = core_skin(arm, skin, False, share=share if on else None)
+        err = float(np.abs(evaluated(skin) - expected).max()) / size
+        print(f"  Volume Blend switched {'on' if on else 'off'} while bound: Blender vs core {err:.2e} of the size")
+        assert err < TOLERANCE, (on, err)
+    assert json_record(arm)["volume_blend"] is True
+    # Bound with it off: no shares yet; on, the rig binds again (Auto Rebind's timer, run here at once).
+    arm, skin, state = bound_arm(preserve_volume=True, volume_blend=False)
+    assert binding.read_share_group(skin) is None
+    state.volume_blend = True
+    assert state.dirty and binding.volume_blend_modifier(skin, arm) is None
+    handlers.rebind_pending(force=True)
+    assert not state.dirty and binding.volume_blend_modifier(skin, arm) is not None
+    assert binding.read_share_group(skin) is not None
+    state.auto_rebind = False
+    state.volume_blend = False
+    runtime.clear_error(arm)
+    assert bpy.ops.myoskin.bind() == {'FINISHED'}
+    state.volume_blend = True  # bound off, no Auto Rebind: marked edited, the panels say why
+    assert state.dirty and "needs a Bind" in runtime.last_error(arm), runtime.last_error(arm)
+
+
+def json_record(arm):
+    import json
+    return json.loads(arm.myoskin.bind_text.as_string())
+
+
 def test_volume_blend_unbind_restores_the_character_exactly_and_pc2_equals_blender():
     bpy.ops.wm.read_homefile(use_empty=True)
     assert bpy.ops.myoskin.add_synthetic_arm(seed=2) == {'FINISHED'}
