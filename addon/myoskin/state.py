@@ -70,46 +70,25 @@ WRAP_SIDES = (
 )
 
 
-def _settings_changed(self, context):
-    """A muscle setting changed: update its wrap display and the muscles.json text (handlers, through the
-    runtime's dispatcher)."""
-    arm_obj = self.id_data
-    try:
-        runtime.dispatch("settings_changed", arm_obj, self)
-    except Exception as e:  # noqa: BLE001  (an update callback must never raise into the UI)
-        runtime.report_error(arm_obj, f"could not apply the change to '{self.name}': {e}")
+def _dispatching(event, failure):
+    """A property update callback: runtime.dispatch(event, armature, item) (the handlers' work), and on an error the
+    message `failure` (formatted with item= the item's name, rig= the armature's) where the user sees it: an update
+    callback must never raise into the UI."""
+    def update(self, context):
+        arm_obj = self.id_data
+        try:
+            runtime.dispatch(event, arm_obj, self)
+        except Exception as e:  # noqa: BLE001
+            runtime.report_error(arm_obj, f"{failure.format(item=getattr(self, 'name', ''), rig=arm_obj.name)}: {e}")
+    return update
 
 
-def _name_changed(self, context):
-    arm_obj = self.id_data
-    try:
-        runtime.dispatch("renamed", arm_obj, self)
-    except Exception as e:  # noqa: BLE001
-        runtime.report_error(arm_obj, f"could not rename '{self.name}': {e}")
-
-
-def _preserve_volume_changed(self, context):
-    arm_obj = self.id_data
-    try:
-        runtime.dispatch("preserve_volume_changed", arm_obj, self)
-    except Exception as e:  # noqa: BLE001
-        runtime.report_error(arm_obj, f"could not switch Preserve Volume of '{arm_obj.name}': {e}")
-
-
-def _volume_blend_changed(self, context):
-    arm_obj = self.id_data
-    try:
-        runtime.dispatch("volume_blend_changed", arm_obj, self)
-    except Exception as e:  # noqa: BLE001
-        runtime.report_error(arm_obj, f"could not switch Volume Blend of '{arm_obj.name}': {e}")
-
-
-def _live_changed(self, context):
-    arm_obj = self.id_data
-    try:
-        runtime.dispatch("live_changed", arm_obj, self)
-    except Exception as e:  # noqa: BLE001
-        runtime.report_error(arm_obj, f"could not switch live update of '{arm_obj.name}': {e}")
+# A muscle setting changed: its wrap display and the muscles.json text follow (handlers.on_settings_changed).
+_settings_changed = _dispatching("settings_changed", "could not apply the change to '{item}'")
+_name_changed = _dispatching("renamed", "could not rename '{item}'")
+_preserve_volume_changed = _dispatching("preserve_volume_changed", "could not switch Preserve Volume of '{rig}'")
+_volume_blend_changed = _dispatching("volume_blend_changed", "could not switch Volume Blend of '{rig}'")
+_live_changed = _dispatching("live_changed", "could not switch live update of '{rig}'")
 
 
 class MyoskinMuscle(bpy.types.PropertyGroup):
