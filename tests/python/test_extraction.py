@@ -275,6 +275,42 @@ def test_anatomical_names_agree_with_the_generators_truth(core):
     assert checked >= 60 and len(wrong) <= 0.05 * checked, wrong
 
 
+REGION_OF_TRUTH = {"biceps": "upper_arm", "brachialis": "upper_arm", "triceps": "upper_arm",
+                   "forearm_extensors": "forearm", "forearm_flexors": "forearm", "quadriceps": "thigh",
+                   "hamstrings": "thigh", "gastrocnemius": "shin", "tibialis_anterior": "shin"}
+REGION_NAME = re.compile(r"^(?:(upper_arm|forearm|hand|thigh|shin|foot|shoulder|neck)_(?:front|back|outer|inner|top|bottom)"
+                         r"|chest|back|belly|flank)$")
+
+
+def test_muscles_no_place_names_anatomically_are_named_by_region_and_side(core):
+    """Held-out generated bodies (seeds 20-23, biped and quadruped): every muscle has an anatomical or a region name
+    (forearm_front.L, shin_outer.R, flank.L: never the bone and its axis), and a limb region names the segment and
+    side of the true muscle nearest to it."""
+    checked, wrong = 0, []
+    for kind in ("biped", "quadruped"):
+        for seed in range(20, 24):
+            character, truth = core.make_synthetic_body(seed=seed, kind=kind)
+            muscles, _ = core.extract_muscles(character, build_surfaces=False)
+            assert muscles
+            for m in muscles:
+                stem, side = _stem_and_side(m.name)
+                if stem in ANATOMICAL or stem in ("pectoral", "deltoid", "abdominal", "back"):
+                    continue
+                match = REGION_NAME.match(stem)
+                assert match, (kind, seed, m.name)
+                if match.group(1) not in ("upper_arm", "forearm", "thigh", "shin"):
+                    continue
+                centres = np.asarray(m.section_centers)
+                nearest = min(truth, key=lambda t: np.mean(
+                    [np.min(np.linalg.norm(np.asarray(t["center_line"]) - p, axis=1)) for p in centres]))
+                true_stem, true_side = nearest["name"].rsplit(".", 1)
+                checked += 1
+                if REGION_OF_TRUTH.get(true_stem) != match.group(1) or true_side != side:
+                    wrong.append((kind, seed, m.name, nearest["name"]))
+    print(f"{checked} region names checked, {len(wrong)} disagree: {wrong}")
+    assert checked >= 20 and len(wrong) <= 0.05 * checked, wrong
+
+
 def test_makehuman_muscles_are_named_anatomically(core):
     character = core.load_character(shared(MUSCULAR))
     names = {m.name for m in core.extract_muscles(character, build_surfaces=False)[0]}

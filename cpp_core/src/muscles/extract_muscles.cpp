@@ -694,8 +694,8 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
         if (!kept[ids[j]].forced) keep[ids[j]] = 0, ++rep.droppedRegionLimit;
     }
   }
-  // Names: anatomical where the muscle's place identifies it ("biceps.L", a second one "biceps_2.L"), else the
-  // bone and its side ("lowerarm01.L_xpos_1").
+  // Names: anatomical where the muscle's place identifies it ("biceps.L", a second one "biceps_2.L"), else its
+  // region and side of the bone ("forearm_front.L"), else (no body frame) the bone and its axis ("forearm_xpos_1").
   std::map<std::string, int> nameCount;
   const detail::BodyFrame frame = detail::bodyFrame(sk, roles, twist);
   for (size_t i = 0; i < kept.size(); ++i) {
@@ -709,6 +709,17 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
       const std::string stem = anatomical.substr(0, dot), side = dot == std::string::npos ? "" : anatomical.substr(dot);
       const int k = ++nameCount[anatomical];
       m.name = k == 1 ? anatomical : stem + "_" + std::to_string(k) + side;
+      if (kept[i].forced) ++rep.forced;
+      result.muscles.push_back(std::move(m));
+      continue;
+    }
+    // By region where the body frame places it ("forearm_front.L", a second one "forearm_front_2.L"), else by bone.
+    const std::string region = detail::regionName(m, kept[i].bone, kept[i].family, sk, frame);
+    if (!region.empty()) {
+      const size_t dot = region.find('.');
+      const std::string stem = region.substr(0, dot), side = dot == std::string::npos ? "" : region.substr(dot);
+      const int k = ++nameCount[region];
+      m.name = k == 1 ? region : stem + "_" + std::to_string(k) + side;
       if (kept[i].forced) ++rep.forced;
       result.muscles.push_back(std::move(m));
       continue;

@@ -14,6 +14,33 @@ namespace {
 // v with its component along unit axis a removed.
 Vec3 across(const Vec3& v, const Vec3& a) { return v - v.dot(a) * a; }
 
+// The side suffix of the muscle's middle (".L", ".R"; "" within half its radius of the mirror plane, or unsided).
+std::string sideOf(const Muscle& muscle, const BodyFrame& frame) {
+  const Vec3 p = muscle.sections[muscle.sections.size() / 2].center;
+  double radius = 0.0;
+  for (const MuscleSection& s : muscle.sections) radius += std::sqrt(std::max(s.a * s.b, 0.0));
+  radius /= static_cast<double>(muscle.sections.size());
+  const double lateral = (p - frame.centre).dot(frame.left);
+  return !frame.sided || std::abs(lateral) < 0.5 * radius ? "" : lateral > 0 ? ".L" : ".R";
+}
+
+// Which way `out` (across `axis`) points: front / back along the body's forward axis, else top / bottom along up
+// when the bone runs forward; otherwise outer / inner (away from / towards the mirror plane, `lateral` its sign).
+std::string facingName(const Vec3& out, const Vec3& axis, const BodyFrame& frame, double lateral) {
+  const Vec3 ahead = across(frame.forward, axis), above = across(frame.up, axis);
+  const Vec3 o = out.normalized();
+  if (ahead.norm() >= 0.5) {
+    const double c = o.dot(ahead.normalized());
+    if (c > 0.5) return "front";
+    if (c < -0.5) return "back";
+  } else if (above.norm() >= 0.5) {
+    const double c = o.dot(above.normalized());
+    if (c > 0.5) return "top";
+    if (c < -0.5) return "bottom";
+  }
+  return o.dot(frame.left) * lateral >= 0.0 ? "outer" : "inner";
+}
+
 }  // namespace
 
 BodyFrame bodyFrame(const Skeleton& sk, const std::vector<BoneRole>& roles, const std::vector<char>& twist) {
@@ -102,11 +129,8 @@ std::string anatomicalName(const Muscle& muscle, int bone, const std::string& fa
                            const BodyFrame& frame) {
   if (!frame.valid || muscle.sections.empty() || bone < 0 || bone >= sk.numBones()) return "";
   const Vec3 p = muscle.sections[muscle.sections.size() / 2].center;
-  double radius = 0.0;
-  for (const MuscleSection& s : muscle.sections) radius += std::sqrt(std::max(s.a * s.b, 0.0));
-  radius /= static_cast<double>(muscle.sections.size());
   const double lateral = (p - frame.centre).dot(frame.left);
-  const std::string side = !frame.sided || std::abs(lateral) < 0.5 * radius ? "" : lateral > 0 ? ".L" : ".R";
+  const std::string side = sideOf(muscle, frame);
   const Bone& b = sk.bones[bone];
   if (family == "shoulder") {
     // Round the shoulder: in front of the girdle bone and medial of its middle, the pectoral's clavicular part;
@@ -154,6 +178,43 @@ std::string anatomicalName(const Muscle& muscle, int bone, const std::string& fa
     return "";
   }
   return "";
+}
+
+
+std::string regionName(const Muscle& muscle, int bone, const std::string& family, const Skeleton& sk,
+                       const BodyFrame& frame) {
+  if (!frame.valid || muscle.sections.empty() || bone < 0 || bone >= sk.numBones()) return "";
+  const Vec3 p = muscle.sections[muscle.sections.size() / 2].center;
+  const std::string side = sideOf(muscle, frame);
+  const double lateral = (p - frame.centre).dot(frame.left);
+  const Bone& b = sk.bones[bone];
+  const Vec3 axis = (b.tail - b.head).normalized();
+  const Vec3 out = across(p - closestOnSegment(p, b.head, b.tail), axis);
+  if (out.norm() < 1e-12 || !axis.allFinite()) return "";
+  std::string region;
+  if (family == "limb" || family == "shoulder") {
+    static const char* arm[] = {"upper_arm", "forearm", "hand"};
+    static const char* leg[] = {"thigh", "shin", "foot"};
+    const int limb = frame.limb[bone], segment = std::min(frame.segment[bone], 2);
+    if (family == "shoulder")
+      region = "shoulder";
+    else if (limb == 0 || segment < 0)
+      return "";
+    else
+      region = (limb == 1 ? arm : leg)[segment];
+  } else if (family == "neck") {
+    region = "neck";
+  } else if (family == "abdomen") {
+    // The trunk: its side faces are the flanks; front and back of an upright trunk are the chest and the back, a
+    // horizontal one's top and bottom its back and belly.
+    const std::string facing = facingName(out, axis, frame, lateral);
+    if (facing == "outer" || facing == "inner") return "flank" + side;
+    if (facing == "front" || facing == "bottom") return (facing == "front" ? "chest" : "belly") + side;
+    return "back" + side;
+  } else {
+    return "";
+  }
+  return region + "_" + facingName(out, axis, frame, lateral) + side;
 }
 
 }  // namespace myoskin::detail

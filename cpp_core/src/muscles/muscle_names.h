@@ -30,4 +30,10 @@ BodyFrame bodyFrame(const Skeleton& skeleton, const std::vector<BoneRole>& roles
 std::string anatomicalName(const Muscle& muscle, int bone, const std::string& family, const Skeleton& skeleton,
                            const BodyFrame& frame);
 
+// "forearm_front.L", "shin_outer.R", "neck_back", "flank.L", ...: the region a muscle lies in (limb segment, neck or
+// trunk) and its side of the bone (front / back / outer / inner, or top / bottom where the bone runs forward), for a
+// muscle anatomicalName cannot name; "" without a body frame (the caller names it by bone and bone axis).
+std::string regionName(const Muscle& muscle, int bone, const std::string& family, const Skeleton& skeleton,
+                       const BodyFrame& frame);
+
 }  // namespace myoskin::detail
