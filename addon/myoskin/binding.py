@@ -168,8 +168,8 @@ def write_share_group(skin, share):
     modifier's dual quaternions), so each vertex with s < 1 gets weight 1 - s and the others stay out; 4.x and 5.x
     take it as the second modifier's own share, so each vertex with s > 0 gets weight s (float32 in Blender).
     Also writes the linear group (weight 1 on the vertices with s < 1): the first modifier deforms only those, since
-    the second one's dual quaternions replace the others whole (the mix takes 0 of the previous result), which
-    spares Blender one of its two skinning passes on most of the skin (same result to the bit)."""
+    the second one's dual quaternions replace the others whole (the mix takes 0 of the previous result; same result to
+    the bit). With the shares 0 away from the joints (unblended_share) 4.x and 5.x then skin most vertices once."""
     group = skin.vertex_groups.get(VOLUME_BLEND_GROUP) or skin.vertex_groups.new(name=VOLUME_BLEND_GROUP)
     group.remove(list(range(len(skin.data.vertices))))
     share = np.asarray(share, dtype=np.float64)
@@ -196,6 +196,22 @@ def read_share_group(skin):
     return 1.0 - weight if _group_weight_is_linear_share() else weight
 
 
+def unblended_share(skins, arm):
+    """The share of the skin no joint blends across (compute_dqs_share's unblended_share): 0 (linear, one Armature
+    modifier there) where Blender's second modifier skips the vertices with s = 0, i.e. 4.x and 5.x (3.x evaluates every
+    vertex in a Multi Modifier, measured in its armature_deform), and where the first modifier can be limited to the
+    vertices with s < 1 (no vertex group of the artist's own: the core ignores such a mask, so the skin it leaves
+    to the first modifier stays small); else 1 (dual quaternions there: the same skin, within 0.1 point of band
+    volume on every benchmarked joint)."""
+    if bpy.app.version < (4, 0, 0):
+        return 1.0
+    for skin in skins:
+        first = armature_modifier(skin, arm)
+        if first is not None and first.vertex_group not in ("", LINEAR_GROUP):
+            return 1.0
+    return 0.0
+
+
 def add_volume_blend(skin, arm, share):
     """Volume blend on a bound mesh: the first Armature modifier linear (over the linear group when the artist gave it
     no vertex group of its own), then right after it a second one on the same armature with Preserve Volume and Multi
@@ -214,8 +230,8 @@ def add_volume_blend(skin, arm, share):
     mod.invert_vertex_group = False
     mod.show_viewport, mod.show_render = bool(first.show_viewport), bool(first.show_render)
     first.use_deform_preserve_volume = False
-    if first.vertex_group in ("", LINEAR_GROUP):
-        first.vertex_group, first.invert_vertex_group = LINEAR_GROUP, False
+    if first.vertex_group == LINEAR_GROUP or (first.vertex_group == "" and not first.invert_vertex_group):
+        first.vertex_group = LINEAR_GROUP
     _move_modifier(skin, mod, list(skin.modifiers).index(first) + 1)
     return mod
 
@@ -266,7 +282,8 @@ def bind(context, skins, arm):
                          f"'{arm.name}''s character")
     # Volume blend: the shares from the skeleton weights of the combined character (before anything changes)
     volume_blend = bool(state.volume_blend) and state.deformer != 'ANCHORED'
-    share = np.asarray(core.compute_dqs_share(character), dtype=np.float64) if volume_blend else None
+    share = (np.asarray(core.compute_dqs_share(character, unblended_share=unblended_share(skins, arm)),
+                        dtype=np.float64) if volume_blend else None)
     names = list(character.bone_names)
     for skin in skins:
         backup_weights(skin)

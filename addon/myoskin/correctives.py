@@ -89,7 +89,8 @@ def require_armature_modifier(skin, arm):
         if m.show_viewport:
             raise ValueError(f"'{skin.name}'s modifier '{m.name}' comes before its Armature modifier: correctives need "
                              f"the shape keys to feed the Armature modifier directly (move it below, or turn it off)")
-    if mod.use_bone_envelopes or not mod.use_vertex_groups or mod.vertex_group:
+    blend_group = mod.vertex_group == binding.LINEAR_GROUP and binding.volume_blend_modifier(skin, arm) is not None
+    if mod.use_bone_envelopes or not mod.use_vertex_groups or (mod.vertex_group and not blend_group):
         raise ValueError(f"'{skin.name}'s Armature modifier must deform by vertex groups only (no envelopes, no "
                          f"modifier vertex group) for correctives")
     return mod

@@ -30,7 +30,8 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
         .preserve_volume                  Bind sets the Armature modifiers' use_deform_preserve_volume to it
         .volume_blend                     Bind adds the volume blend (share group myoskin_dqs_share, a second
                                           Armature modifier with Preserve Volume + Multi Modifier after the first,
-                                          which stays linear); Unbind removes both
+                                          which stays linear over the group myoskin_linear); a bound rig follows
+                                          a switch at once; Unbind removes all of it
         .bind_text                        Text datablock "<armature>.bind.json", the bind record: skeleton
                                           (names, parents, heads, tails, rest), the bound muscles' json,
                                           joint names, surface object names (live update rebuilds from it)

@@ -32,8 +32,9 @@ TMP = tempfile.mkdtemp(prefix="myoskin_test_correctives_")
 
 
 
-def new_arm(bound=False):
-    """The synthetic arm (plain skeleton weights, linear) or bound with Preserve Volume; (arm, skin)."""
+def new_arm(bound=False, volume_blend=False):
+    """The synthetic arm (plain skeleton weights, linear) or bound with Preserve Volume (and the volume blend);
+    (arm, skin)."""
     bpy.ops.wm.read_homefile(use_empty=True)
     assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
@@ -41,7 +42,7 @@ def new_arm(bound=False):
     if bound:
         assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
         arm.myoskin.preserve_volume = True
-        arm.myoskin.volume_blend = False  # Preserve Volume alone (the volume blend: test_preserve_volume)
+        arm.myoskin.volume_blend = volume_blend
         assert bpy.ops.myoskin.bind() == {'FINISHED'}
     bpy.context.view_layer.objects.active = skin
     return arm, skin
@@ -102,7 +103,12 @@ def core_posed(skin, arm):
     mode = skinner.preserve_volume
     names = [b.name for b in arm.data.bones if b.use_deform]
     joints, weights = module("rig_io").read_combined_weights(skin, names)
-    if mode:
+    binding = module("binding")
+    if binding.volume_blend_modifier(skin, arm) is not None:  # the volume blend's shares as Blender mixes them
+        rest = np.array([np.array(arm.data.bones[n].matrix_local) for n in names])
+        again = core.Skinner(inputs, joints, weights, len(names), dqs_share=binding.read_share_group(skin),
+                             rest_matrices=rest, dq_scale=binding.dq_scale())
+    elif mode:
         rest = np.array([np.array(arm.data.bones[n].matrix_local) for n in names])
         again = core.Skinner(inputs, joints, weights, len(names), preserve_volume=True, rest_matrices=rest,
                              dq_scale=module("binding").dq_scale())
@@ -118,8 +124,8 @@ def key_value(skin, name):
     return skin.data.shape_keys.key_blocks[name].value
 
 
-def check_sculpt_reproduced(bound):
-    arm, skin = new_arm(bound)
+def check_sculpt_reproduced(bound, volume_blend=False):
+    arm, skin = new_arm(bound, volume_blend)
     size = size_of(skin)
     rest = module("blender_io").mesh_vertices(skin.data)
     set_pose(arm, {"forearm": (100.0, (1.0, 0.0, 0.0))})
@@ -130,7 +136,8 @@ def check_sculpt_reproduced(bound):
     err = float(np.linalg.norm(blender - sculpt, axis=1).max()) / size
     core = float(np.linalg.norm(blender - core_posed(skin, arm), axis=1).max()) / size
     moved = float(np.linalg.norm(sculpt - posed, axis=1).max()) / size
-    print(f"  {'bound, preserve volume' if bound else 'skeleton weights, linear'}: sculpt (moves the skin "
+    mode = ('bound, volume blend' if volume_blend else 'bound, preserve volume') if bound else 'skeleton weights, linear'
+    print(f"  {mode}: sculpt (moves the skin "
           f"{moved:.3f} of the size) reproduced to {err:.2e}, Blender vs core {core:.2e} of the size; "
           f"key value {key_value(skin, 'elbow'):.7f}")
     assert moved > 0.015
@@ -158,6 +165,14 @@ def test_a_sculpted_copy_is_reproduced_on_a_bound_rig_with_preserve_volume():
     arm, skin = check_sculpt_reproduced(bound=True)
     assert module("binding").armature_modifier(skin, arm).use_deform_preserve_volume
     assert any(b.get("myoskin_joint") for b in arm.data.bones)
+
+
+def test_a_sculpted_copy_is_reproduced_on_a_rig_bound_with_the_volume_blend():
+    """The default bind: the first Armature modifier over the linear group, the second one's dual quaternions."""
+    arm, skin = check_sculpt_reproduced(bound=True, volume_blend=True)
+    binding = module("binding")
+    assert binding.volume_blend_modifier(skin, arm) is not None
+    assert binding.armature_modifier(skin, arm).vertex_group == binding.LINEAR_GROUP
 
 
 def test_object_transforms_of_the_skin_and_the_armature_are_taken_into_account():

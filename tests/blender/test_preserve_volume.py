@@ -230,22 +230,26 @@ def test_volume_blend_switches_on_a_bound_rig_at_once_and_blender_still_equals_t
     modifier takes the rig's Preserve Volume over the whole skin), on adds them back from the share group, Blender
     equals the core in each mode; a rig bound with it off has no shares, so switching it on binds again."""
     binding, handlers, runtime = module("binding"), module("handlers"), module("runtime")
-    arm, skin, state = bound_arm(preserve_volume=False, volume_blend=True)
-    first = binding.armature_modifier(skin, arm)
-    share = binding.read_share_group(skin)
-    assert share is not None and first.vertex_group == binding.LINEAR_GROUP
-    set_pose(arm, {"forearm": (110.0, 0.0, 0.0), "upper_arm": (0.0, 0.0, 40.0)})
-    size = size_of(skin)
-    for on in (False, True, False, True):
-        state.volume_blend = on
-        assert (binding.volume_blend_modifier(skin, arm) is not None) == on
-        assert (first.vertex_group == binding.LINEAR_GROUP) == on and (binding.LINEAR_GROUP in skin.vertex_groups) == on
-        assert not first.use_deform_preserve_volume and not state.dirty  # linear: the rig's Preserve Volume is off
-        expected, _ = core_skin(arm, skin, False, share=share if on else None)
-        err = float(np.abs(evaluated(skin) - expected).max()) / size
-        print(f"  Volume Blend switched {'on' if on else 'off'} while bound: Blender vs core {err:.2e} of the size")
-        assert err < TOLERANCE, (on, err)
-    assert json_record(arm)["volume_blend"] is True
+    for preserve_volume in (False, True):
+        arm, skin, state = bound_arm(preserve_volume=preserve_volume, volume_blend=True)
+        first = binding.armature_modifier(skin, arm)
+        share = binding.read_share_group(skin)
+        assert share is not None and first.vertex_group == binding.LINEAR_GROUP
+        set_pose(arm, {"forearm": (110.0, 0.0, 0.0), "upper_arm": (0.0, 0.0, 40.0)})
+        size = size_of(skin)
+        for on in (False, True, False, True):
+            state.volume_blend = on
+            assert (binding.volume_blend_modifier(skin, arm) is not None) == on
+            assert (first.vertex_group == binding.LINEAR_GROUP) == on
+            assert (binding.LINEAR_GROUP in skin.vertex_groups) == on and not state.dirty
+            # the blend's first modifier is linear; without the blend it takes the rig's Preserve Volume
+            assert first.use_deform_preserve_volume == (preserve_volume and not on)
+            expected, _ = core_skin(arm, skin, preserve_volume and not on, share=share if on else None)
+            err = float(np.abs(evaluated(skin) - expected).max()) / size
+            print(f"  Volume Blend switched {'on' if on else 'off'} while bound (Preserve Volume {preserve_volume}): "
+                  f"Blender vs core {err:.2e} of the size")
+            assert err < TOLERANCE, (on, err)
+        assert json_record(arm)["volume_blend"] is True
     # Bound with it off: no shares yet; on, the rig binds again (Auto Rebind's timer, run here at once).
     arm, skin, state = bound_arm(preserve_volume=True, volume_blend=False)
     assert binding.read_share_group(skin) is None

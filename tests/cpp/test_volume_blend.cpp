@@ -293,13 +293,20 @@ TEST(VolumeBlend, TwistSplitBlendsKeepDualQuaternions) {
   const Eigen::VectorXd share = computeDqsShare(c.skeleton, c.weights, c.mesh, {}, &joints);
   ASSERT_FALSE(joints.empty());
   for (const JointVolumeBlend& j : joints) ASSERT_NE(j.bone, twistIndex);  // a twist split, not a joint
+  // Only the vertices outside every measured joint's band show the rule (inside, the share is 1 anyway).
+  const double reach = VolumeBlendOptions{}.bandRadius * joints.front().radius;
   int twisted = 0;
-  for (int v = 0; v < c.mesh.numVertices(); ++v)
+  for (int v = 0; v < c.mesh.numVertices(); ++v) {
+    bool far = true;
+    for (const JointVolumeBlend& j : joints)
+      far = far && (c.mesh.vertices.row(v).transpose() - c.skeleton.bones[j.bone].head).norm() > reach;
     for (int k = 0; k < c.weights.influences(); ++k)
-      if (c.weights.joints(v, k) == twistIndex && c.weights.weights(v, k) > 0.1 && c.weights.weights(v, k) < 0.9) {
+      if (far && c.weights.joints(v, k) == twistIndex && c.weights.weights(v, k) > 0.1 &&
+          c.weights.weights(v, k) < 0.9) {
         ++twisted;
         EXPECT_EQ(share[v], 1.0);
       }
+  }
   EXPECT_GT(twisted, 50);
 }
 
@@ -317,6 +324,12 @@ TEST(VolumeBlend, BadInputToTheSharesIsRejected) {
   o.minBlend = 1.5;
   EXPECT_NE(inputErrorOf([&] { computeDqsShare(c.skeleton, c.weights, c.mesh, o); }).find("minBlend"),
             std::string::npos);
+  for (double bad : {-0.1, 1.1, std::nan("")}) {
+    o = {};
+    o.unblendedShare = bad;
+    EXPECT_NE(inputErrorOf([&] { computeDqsShare(c.skeleton, c.weights, c.mesh, o); }).find("unblendedShare"),
+              std::string::npos) << bad;
+  }
   Mesh m = c.mesh;
   m.vertices(3, 1) = std::nan("");
   EXPECT_FALSE(inputErrorOf([&] { computeDqsShare(c.skeleton, c.weights, m); }).empty());

@@ -39,8 +39,9 @@ struct VolumeBlendOptions {
   // Share of a vertex outside every real joint's band that no joint and no twist split blends across (b < minBlend):
   // one bone moves it, so the two blends differ there only by the muscle joints' rotation and scale (measured on
   // MakeHuman, generated bodies, the soldier and the horse: band changes and bulges unchanged). 0 = linear, which
-  // Blender evaluates with one Armature modifier instead of two (the volume blend's playback cost). Inside a band and
-  // across a twist split the share stays 1 (dual quaternions keep a twisting forearm from collapsing).
+  // Blender 4.x/5.x evaluate with one Armature modifier instead of two (the volume blend's playback cost). Inside a
+  // band, across a twist split (dual quaternions keep a twisting forearm from collapsing) and across a joint whose
+  // band could not be measured the share stays 1.
   double unblendedShare = 0.0;
   // The body's up axis; zero = automatic: against the sum of the limb bones (legs point down; arms sideways or down),
   // in the plane across X; without limbs +Y when the skin is taller along Y than along Z (glTF), else +Z (Blender).
@@ -71,7 +72,8 @@ struct JointVolumeBlend {
 // skin the skeleton blends across it, the share s_j in [0, 1] minimising |band volume change| of the blend at the
 // reference flexion (within keepTolerance; s_j = 1 where dual quaternions lose volume there too: elbows, shoulders);
 // each vertex takes sum_j b_j s_j / sum_j b_j over the joints it blends across (b_j >= minBlend), 1 where it blends
-// across twist splits only or inside a joint's band, and unblendedShare (0) elsewhere. Deterministic (no threads).
+// across twist splits or unmeasured joints only or inside a joint's band, and unblendedShare (0) elsewhere.
+// Deterministic (no threads).
 // `joints` (optional) receives one entry per joint measured. Throws InputError on mismatched sizes, bad weights or
 // indices, non-finite vertices or options out of range (bendDegrees in (0, 180], bandRadius > 0, keepTolerance in
 // [0, 1], minBlend in (0, 1], unblendedShare in [0, 1]).

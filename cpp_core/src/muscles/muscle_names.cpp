@@ -24,21 +24,23 @@ std::string sideOf(const Muscle& muscle, const BodyFrame& frame) {
   return !frame.sided || std::abs(lateral) < 0.5 * radius ? "" : lateral > 0 ? ".L" : ".R";
 }
 
-// Which way `out` (across `axis`) points: front / back along the body's forward axis, else top / bottom along up
-// when the bone runs forward; otherwise outer / inner (away from / towards the mirror plane, `lateral` its sign).
+// Which way `out` (across `axis`) points: of the body's forward, up and left axes taken across the bone, the one it
+// lies along most: front / back, top / bottom, or outer / inner (away from / towards the mirror plane, `lateral` the
+// muscle's side of it).
 std::string facingName(const Vec3& out, const Vec3& axis, const BodyFrame& frame, double lateral) {
-  const Vec3 ahead = across(frame.forward, axis), above = across(frame.up, axis);
   const Vec3 o = out.normalized();
-  if (ahead.norm() >= 0.5) {
-    const double c = o.dot(ahead.normalized());
-    if (c > 0.5) return "front";
-    if (c < -0.5) return "back";
-  } else if (above.norm() >= 0.5) {
-    const double c = o.dot(above.normalized());
-    if (c > 0.5) return "top";
-    if (c < -0.5) return "bottom";
+  double best = -1.0;
+  std::string name = "outer";
+  const Vec3 axes[3] = {frame.forward, frame.up, frame.left};
+  const char* names[3][2] = {{"front", "back"}, {"top", "bottom"}, {"outer", "inner"}};
+  for (int k = 0; k < 3; ++k) {
+    const Vec3 a = across(axes[k], axis);
+    if (a.norm() < 0.5) continue;  // the bone runs along it
+    double c = o.dot(a.normalized());
+    if (k == 2 && lateral < 0.0) c = -c;  // outer: away from the mirror plane on either side
+    if (std::abs(c) > best) best = std::abs(c), name = names[k][c >= 0.0 ? 0 : 1];
   }
-  return o.dot(frame.left) * lateral >= 0.0 ? "outer" : "inner";
+  return name;
 }
 
 }  // namespace
@@ -185,12 +187,13 @@ std::string regionName(const Muscle& muscle, int bone, const std::string& family
                        const BodyFrame& frame) {
   if (!frame.valid || muscle.sections.empty() || bone < 0 || bone >= sk.numBones()) return "";
   const Vec3 p = muscle.sections[muscle.sections.size() / 2].center;
+  if (!p.allFinite()) return "";
   const std::string side = sideOf(muscle, frame);
   const double lateral = (p - frame.centre).dot(frame.left);
   const Bone& b = sk.bones[bone];
   const Vec3 axis = (b.tail - b.head).normalized();
   const Vec3 out = across(p - closestOnSegment(p, b.head, b.tail), axis);
-  if (out.norm() < 1e-12 || !axis.allFinite()) return "";
+  if (!axis.allFinite() || !out.allFinite() || out.norm() < 1e-12) return "";
   std::string region;
   if (family == "limb" || family == "shoulder") {
     static const char* arm[] = {"upper_arm", "forearm", "hand"};

@@ -197,7 +197,7 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
   auto direction = [&](int b) { return Vec3((joined.bones[b].tail - joined.bones[b].head).normalized()); };
   std::vector<char> inSubtree(nb);
   Eigen::VectorXd blend(nv);
-  std::vector<char> twisted(nv, 0);    // blended across a twist split (b >= minBlend)
+  std::vector<char> crossed(nv, 0);    // blended across any joint or twist split (b >= minBlend)
   std::vector<char> nearJoint(nv, 0);  // in a real joint's band (bandRadius limb radii of its head)
   const double reach = options.bandRadius * limbRadius;
   for (int c = 0; c < nb; ++c) {
@@ -211,7 +211,7 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
         if (w.joints(v, k) >= 0 && inSubtree[w.joints(v, k)]) inside += w.weights(v, k);
       blend[v] = total[v] > kRestWeightThreshold ? 2.0 * std::min(inside, total[v] - inside) / total[v] : 0.0;
       anyBlend = anyBlend || blend[v] >= options.minBlend;
-      if (twist[c] && blend[v] >= options.minBlend) twisted[v] = 1;
+      if (blend[v] >= options.minBlend) crossed[v] = 1;  // a twist split, or a joint even where not measured
       if (!twist[c] && (skin.vertices.row(v).transpose() - skeleton.bones[c].head).norm() <= reach) nearJoint[v] = 1;
     }
     if (!anyBlend || twist[c]) continue;
@@ -248,7 +248,7 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
   Eigen::VectorXd share(nv);
   for (int v = 0; v < nv; ++v)
     share[v] = blendSum[v] > 0.0 ? std::clamp(shareSum[v] / blendSum[v], 0.0, 1.0)
-                                 : (twisted[v] || nearJoint[v] ? 1.0 : options.unblendedShare);
+                                 : (crossed[v] || nearJoint[v] ? 1.0 : options.unblendedShare);
   return share;
 }
 
