@@ -162,6 +162,15 @@ def _group_weight_is_linear_share():
     return bpy.app.version < (4, 0, 0)
 
 
+SHARE_CONVENTION_KEY = "myoskin_share_convention"  # ID property on a mesh: how its share group's weights read
+
+
+def _share_convention():
+    """How this Blender's Multi Modifier reads the share group: "previous" (3.x: the linear result's share) or
+    "own" (4.x, 5.x: the second modifier's share)."""
+    return "previous" if _group_weight_is_linear_share() else "own"
+
+
 def write_share_group(skin, share):
     """The share group on the mesh from #V dual-quaternion shares s. Blender 3.x's Multi Modifier takes the group's
     weight as the PREVIOUS (linear) modifier's share (weight 0, or a vertex not in the group, gives the second
@@ -180,6 +189,7 @@ def write_share_group(skin, share):
         ids = np.flatnonzero(share > 0.0)
         values = share[ids]
     blender_io.add_group_weights(group, ids, values)
+    skin[SHARE_CONVENTION_KEY] = _share_convention()
     linear = skin.vertex_groups.get(LINEAR_GROUP) or skin.vertex_groups.new(name=LINEAR_GROUP)
     linear.remove(list(range(len(skin.data.vertices))))
     needed = np.flatnonzero(share < 1.0)
@@ -193,7 +203,17 @@ def read_share_group(skin):
     if skin.vertex_groups.get(VOLUME_BLEND_GROUP) is None:
         return None
     weight = blender_io.vertex_group_weights(skin, VOLUME_BLEND_GROUP)
-    return 1.0 - weight if _group_weight_is_linear_share() else weight
+    return 1.0 - weight if skin.get(SHARE_CONVENTION_KEY, _share_convention()) == "previous" else weight
+
+
+def ensure_share_convention(skin):
+    """A share group written by a Blender that reads it the other way (a .blend bound in 3.x opened in 4.x or the
+    reverse) is rewritten for this one, so the volume blend mixes the same shares; True when it was."""
+    written = skin.get(SHARE_CONVENTION_KEY)
+    if skin.vertex_groups.get(VOLUME_BLEND_GROUP) is None or written in (None, _share_convention()):
+        return False
+    write_share_group(skin, read_share_group(skin))
+    return True
 
 
 def unblended_share(skins, arm):
@@ -249,6 +269,8 @@ def remove_volume_blend(skin, arm):
         group = skin.vertex_groups.get(name)
         if group is not None:
             skin.vertex_groups.remove(group)
+    if SHARE_CONVENTION_KEY in skin:
+        del skin[SHARE_CONVENTION_KEY]
 
 
 def bind(context, skins, arm):

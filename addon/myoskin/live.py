@@ -451,16 +451,22 @@ def on_reload(*_args):
 def on_load(*_args):
     """load_post: another file, so the errors reported for the armatures of the last one are gone too. A rig
     bound before Preserve Volume became the default (the setting never stored) keeps the mode its Armature
-    modifiers were bound with."""
+    modifiers were bound with. A volume blend's share group written by a Blender that reads it the other way (3.x /
+    4.x and later) is rewritten for this one."""
     runtime.clear_error()
     for obj in bpy.data.objects:
         try:
             if obj.type != 'ARMATURE' or obj.library is not None:
                 continue
             state = obj.myoskin
-            if not state.bound or state.is_property_set("preserve_volume"):
+            if not state.bound:
                 continue
             skins = binding.bound_skins(obj)
+            for skin in skins:
+                if skin.library is None:
+                    binding.ensure_share_convention(skin)
+            if state.is_property_set("preserve_volume"):
+                continue
             if skins:
                 state.preserve_volume = binding.preserve_volume_of(skins[0], obj)
         except Exception as e:  # a damaged rig must not stop the file from loading

@@ -173,13 +173,14 @@ def character_snapshot(skin):
     """What Unbind must give back: the modifier stack (type, object, Preserve Volume, Multi Modifier, group) and
     every vertex group with its members' weights."""
     mods = [(m.type, getattr(m, "object", None) and m.object.name, getattr(m, "use_deform_preserve_volume", None),
-             getattr(m, "use_multi_modifier", None), getattr(m, "vertex_group", None)) for m in skin.modifiers]
+             getattr(m, "use_multi_modifier", None), getattr(m, "vertex_group", None),
+             getattr(m, "invert_vertex_group", None)) for m in skin.modifiers]
     groups = {g.name: {} for g in skin.vertex_groups}
     names = [g.name for g in skin.vertex_groups]
     for v in skin.data.vertices:
         for g in v.groups:
             groups[names[g.group]][v.index] = g.weight
-    return mods, names, groups
+    return mods, names, groups, sorted(skin.keys())
 
 
 def test_volume_blend_bind_writes_the_group_and_a_second_modifier_and_blender_equals_the_core():
@@ -264,6 +265,31 @@ def test_volume_blend_switches_on_a_bound_rig_at_once_and_blender_still_equals_t
     assert bpy.ops.myoskin.bind() == {'FINISHED'}
     state.volume_blend = True  # bound off, no Auto Rebind: marked edited, the panels say why
     assert state.dirty and "needs a Bind" in runtime.last_error(arm), runtime.last_error(arm)
+
+
+def test_a_share_group_written_by_the_other_blender_generation_is_rewritten_on_load():
+    """3.x's Multi Modifier reads the share group as the linear result's share, 4.x and 5.x as the second modifier's:
+    a .blend bound in one and opened in the other gets its group rewritten on load (the same shares mix)."""
+    binding, live = module("binding"), module("live")
+    arm, skin, state = bound_arm(preserve_volume=False, volume_blend=True)
+    share = binding.read_share_group(skin)
+    assert share is not None and 0.0 < share.mean() < 1.0
+    here = skin[binding.SHARE_CONVENTION_KEY]
+    other = "own" if here == "previous" else "previous"
+    group = skin.vertex_groups[binding.VOLUME_BLEND_GROUP]  # as the other generation wrote it
+    group.remove(list(range(len(skin.data.vertices))))
+    ids = np.flatnonzero(share < 1.0) if other == "previous" else np.flatnonzero(share > 0.0)
+    module("blender_io").add_group_weights(group, ids, (1.0 - share[ids]) if other == "previous" else share[ids])
+    skin[binding.SHARE_CONVENTION_KEY] = other
+    assert np.abs(binding.read_share_group(skin) - share).max() < 1e-6  # read the way it was written
+    live.on_load()
+    assert skin[binding.SHARE_CONVENTION_KEY] == here
+    assert np.abs(binding.read_share_group(skin) - share).max() < 1e-6
+    set_pose(arm, {"forearm": (110.0, 0.0, 0.0)})
+    expected, _ = core_skin(arm, skin, False, share=binding.read_share_group(skin))
+    err = float(np.abs(evaluated(skin) - expected).max()) / size_of(skin)
+    print(f"  share group rewritten from '{other}' to '{here}': Blender vs core {err:.2e} of the size")
+    assert err < TOLERANCE, err
 
 
 def json_record(arm):
