@@ -118,8 +118,8 @@ Vec3 mirrored(const Vec3& p, const Vec3& c, const Vec3& n) { return p - 2.0 * (p
 
 // Orients the frames for the skeleton's mirror plane (skeletonMirrorPlane): every mirror-axis plane gets its X axis
 // across the mirror plane (its y axis in it), whichever of its in-plane axes the spine's rest frame made sideways, and
-// of two limb planes that mirror each other (same order, origins within a quarter of `spacing`) the later family's frame
-// is turned half a turn where needed, so mirrored limbs' X axes are mirrored and negated (their +Y axes mirrored), as
+// of two limb planes that mirror each other (same order, origins within a quarter of `spacing`) the one on the
+// normal's negative side is turned half a turn where needed, so mirrored limbs' X axes are mirrored and negated (their +Y axes mirrored), as
 // the profiles' resampling from +Y and the mirrored twins assume (sections.h, ProfileOptions::mirrorLimbs).
 void orientMirrorFrames(std::vector<CuttingPlane>& planes, double spacing) {
   Vec3 c, n;
@@ -143,9 +143,10 @@ void orientMirrorFrames(std::vector<CuttingPlane>& planes, double spacing) {
       if (d < nearest) nearest = d, best = static_cast<int>(j);
     }
     if (best < 0) continue;
-    CuttingPlane& b = planes[best];
     const Vec3 mn = a.normal - 2.0 * a.normal.dot(n) * n, mx = a.xAxis - 2.0 * a.xAxis.dot(n) * n;
-    if (mn.dot(b.normal) < 0.9 || mx.dot(b.xAxis) <= 0) continue;
+    if (mn.dot(planes[best].normal) < 0.9 || mx.dot(planes[best].xAxis) <= 0) continue;
+    // The plane on the mirror normal's negative side turns (by place, not by bone order, which names can change).
+    CuttingPlane& b = (a.origin - c).dot(n) < 0 ? planes[i] : planes[best];
     b.xAxis = -b.xAxis, b.yAxis = -b.yAxis;  // half a turn about the normal
   }
 }
