@@ -783,8 +783,9 @@ TEST(Measured, MakeHumanRobustToPlaneSpacing) {
     o.buildSurfaces = false;
     return o;
   };
-  // Measured (muscular vs neutral), spacing x 0.9 ... 1.1 in steps of 0.025 (no surfaces): 20/4, 18/8, 20/6, 22/6,
-  // 22/6, 18/4, 24/6, 14/6, 16/4 (x 1.075: 14/4 without the spindle rule, which keeps the neutral forearms there);
+  // Measured (muscular vs neutral), spacing x 0.9 ... 1.1 in steps of 0.025 (no surfaces): 24/4, 18/8, 20/8, 22/8,
+  // 22/6, 20/4, 24/6, 14/6, 16/4 (spindle ends 0.85 and steepness 0.04; with 0.75 and 0.05: 20/4, 18/8, 20/6, 22/6,
+  // 22/6, 18/4, 24/6, 14/6, 16/4; x 1.075: 14/4 without the spindle rule, which keeps the neutral forearms there);
   // earlier 20/4, 20/8, 20/6, 24/6, 20/6, 18/4, 22/6, 14/4, 18/4 (before the continuous floor and the alternating fragments: 18/4, 18/6, 18/6, 20/6, 16/6, 16/4,
   // 20/6, 12/4, 15/4). The "at most half" holds at every one (ExtractionOptions::minEvidence; with the
   // earlier rule of 4 significant sections it failed at x 0.925, 0.975, 1.025, 1.075 and 1.1). Every muscular
@@ -805,8 +806,8 @@ TEST(Measured, MakeHumanRobustToPlaneSpacing) {
 
 TEST(Measured, FaintHysteresisWithMirroredLimbs) {
   // Opt-in: hysteresis down to half the threshold for every chain, mirrored limb profiles averaged. Measured:
-  // every seed's six muscles and nothing else; MakeHuman muscular 22 / 20 / 24 at spacing x 0.95 / 1 / 1.05
-  // against neutral 8 / 8 / 6, every muscular one exactly mirrored. Not the default: the synthetic arm's biceps then reaches further towards the
+  // every seed's six muscles and nothing else; MakeHuman muscular 22 / 22 / 26 at spacing x 0.95 / 1 / 1.05
+  // against neutral 10 / 8 / 6 (8 at x 0.95 with spindle ends 0.75), every muscular one exactly mirrored. Not the default: the synthetic arm's biceps then reaches further towards the
   // elbow and the hybrid skinning's elbow region at 35 degrees grows more than LBS loses (test_hybrid_skinning).
   ExtractionOptions o;
   o.weakFraction = 0.5;

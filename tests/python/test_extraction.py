@@ -57,10 +57,12 @@ def test_truth_relief_and_visible_length(core, arm):
 
 def test_mirror_twins_on_a_generated_biped(core):
     """A limb chain the floors drop is kept when its mirror twin on the other limb passed them (twin_reach)."""
-    character, truth = core.make_synthetic_body(seed=1, kind="biped")
+    character, truth = core.make_synthetic_body(seed=2, kind="biped")
     with_twins, report = core.extract_muscles(character, build_surfaces=False)
     without, report0 = core.extract_muscles(character, build_surfaces=False, twin_reach=0.0)
-    assert report["twins"] >= 1 and report0["twins"] == 0  # measured: 1 (a tibialis flat on one leg only)
+    # Measured: 2 (seed 2: 18 true muscles matched, 16 without twins; seed 1's one twin, a tibialis flat on one leg
+    # only, is found on both legs since mirrored limbs are resampled from mirrored points)
+    assert report["twins"] >= 1 and report0["twins"] == 0
     assert len(with_twins) == len(without) + report["twins"]
     acc, acc0 = core.measure_extraction(with_twins, truth), core.measure_extraction(without, truth)
     assert acc["matched"] > acc0["matched"] and acc["precision"] >= acc0["precision"], (acc, acc0)

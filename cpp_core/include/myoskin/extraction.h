@@ -190,10 +190,14 @@ struct ExtractionOptions {
   // peaks, or a peak at an end). Over plane spacings x 0.9-1.1 the neutral lower-leg chains with the profile (peak
   // 1.03-1.06) have steepness 0.036-0.038, the muscular body's unpaired lower-leg chain at x 1.05 0.037; neutral's
   // forearm pair at x 1.075 (0.059) is kept. Ends 0.85 or 1 add neutral chains (x 0.95: neutral 8 and 10 against
-  // muscular 20); 5 sections lose tune recall 0.852 -> 0.815. 0 = off
-  double spindleEnds = 0.75;
+  // muscular 20); 5 sections lose tune recall 0.852 -> 0.815. Once mirrored limbs were resampled from mirrored points
+  // (skeletonMirrorPlane), ends 0.85 and steepness 0.04 (first 0.75 and 0.05): tune seeds 1-11 biped recall 0.914 ->
+  // 0.934, quadruped 0.938 -> 0.949 (precision unchanged), held-out biped 0.826 -> 0.868, quadruped 0.953 -> 0.969; the
+  // shared characters' and the synthetic arm's muscles unchanged, MakeHuman neutral at most half of muscular at every
+  // spacing x 0.9-1.1 (neutral 8 against 20 and 22 at x 0.95 and 0.975). 0 = off
+  double spindleEnds = 0.85;
   int spindleSections = 4;
-  double spindleSteepness = 0.05;
+  double spindleSteepness = 0.04;
   // Mirror twins (issue 13): on a body with a mirror plane (a torso plane on it, CuttingPlane::mirrorAxis), a limb chain
   // that misses the floors above (and is no closed spindle) is kept when its mirror twin passed them: a chain of the
   // same family on the other limb, at least half of whose bump centres, mirrored, lie within twinReach times the larger

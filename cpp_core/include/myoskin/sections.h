@@ -62,9 +62,10 @@ struct CuttingPlane {
   double clipRadius = 0.0;  // > 0: the profile keeps only the skin within this distance of the origin (planes
                             // on shoulder bones, which cut the whole side of the torso), closed by a chord
   bool mirrorAxis = false;  // the plane's y axis lies in the skeleton's mirror (sagittal) plane: torso planes
-                            // normal to the spine or neck, whose rest X axis points sideways (Rigify, MakeHuman,
-                            // Mixamo). Such sections get an even sample count (mirrored samples on a symmetric
-                            // body) and are triangulated as two halves split along the y axis
+                            // normal to the spine or neck, their X axis turned sideways where the spine's rest
+                            // frame has another axis sideways (skeletonMirrorPlane). Such sections get an even
+                            // sample count (mirrored samples on a symmetric body) and are triangulated as two
+                            // halves split along the y axis
   std::vector<int> region;  // bones whose skin the profile must stay on (by each vertex's dominant bone);
                             // empty = anywhere. Limbs: the chain, its subtree and its parent; torso
                             // families: every bone outside the limbs (the shoulder also the arm's first bone)
@@ -99,6 +100,12 @@ struct PlaneOptions {
 // (extraction.h, dominantMuscles). Deterministic: bones are visited in index order.
 std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const std::vector<BoneRole>& roles,
                                             const PlaneOptions& options = {});
+
+// The skeleton's mirror plane (point c, unit normal n): through the first torso plane on it (CuttingPlane::mirrorAxis),
+// normal to that plane's x or y axis, whichever maps the limb planes' origins closer onto another limb's (rest frames
+// differ in which in-plane axis of the spine points sideways; makeCuttingPlanes turns the torso frames so it is x).
+// False without a mirror-axis plane or without two limb planes.
+bool skeletonMirrorPlane(const std::vector<CuttingPlane>& planes, Vec3& c, Vec3& n);
 
 // The skin's profile on one plane: a closed, simple, counter-clockwise polygon (2D plane coordinates,
 // metres, about evenly spaced), the loop that encloses the bone.

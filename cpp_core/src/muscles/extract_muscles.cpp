@@ -143,33 +143,6 @@ bool spindleChain(const MuscleChain& c, const std::vector<SectionBumps>& section
   return true;
 }
 
-// The skeleton's mirror plane (point c, unit normal n): through a torso plane on it (CuttingPlane::mirrorAxis), normal
-// to that plane's x or y axis, whichever maps the limb planes' origins closer onto another limb's (bone frames differ in
-// which in-plane axis points sideways). False without such a plane or limb planes.
-bool mirrorPlane(const std::vector<CuttingPlane>& planes, Vec3& c, Vec3& n) {
-  const auto axis = std::find_if(planes.begin(), planes.end(), [](const CuttingPlane& p) { return p.mirrorAxis; });
-  if (axis == planes.end()) return false;
-  std::vector<const CuttingPlane*> limb;
-  for (const CuttingPlane& p : planes)
-    if (p.family == "limb") limb.push_back(&p);
-  if (limb.size() < 2) return false;
-  double best = INFINITY;
-  c = axis->origin;
-  for (const Vec3& candidate : {axis->xAxis, axis->yAxis}) {
-    const Vec3 u = candidate.normalized();
-    double sum = 0.0;
-    for (const CuttingPlane* p : limb) {
-      const Vec3 m = p->origin - 2.0 * (p->origin - c).dot(u) * u;
-      double nearest = INFINITY;
-      for (const CuttingPlane* q : limb)
-        if (q->familyIndex != p->familyIndex) nearest = std::min(nearest, (m - q->origin).squaredNorm());
-      sum += std::isfinite(nearest) ? nearest : 0.0;
-    }
-    if (sum < best) best = sum, n = u;
-  }
-  return true;
-}
-
 // True when chain b is chain a's mirror twin: a limb chain of the same family on another limb whose real bumps' centres,
 // mirrored through the skeleton's mirror plane (point c, unit normal n), lie within `reach` times the larger of the two
 // chains' mean semi-axis a of the other's centres, at least half of them both ways (the same belly on the other side).
@@ -632,7 +605,7 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
   // Mirror twins (ExtractionOptions::twinReach): on a mirrored body a limb chain the floors dropped is kept when its
   // twin on the other limb passed them (the same belly seen twice; the floors decided on one side's sampling).
   Vec3 mc, mn;
-  if (options.twinReach > 0 && mirrorPlane(planes, mc, mn)) {
+  if (options.twinReach > 0 && skeletonMirrorPlane(planes, mc, mn)) {
     const size_t passed = kept.size();
     for (const auto& [ci, ri] : dropped) {
       const MuscleChain& c = chains[ci];

@@ -78,8 +78,9 @@ class TreeRoles {
     const std::vector<std::pair<int, int>> pairs = limbPairs();
     std::vector<int> attachments;
     for (const auto& [a, b] : pairs) {
-      classifyLimb(a, roles);
-      classifyLimb(b, roles);
+      const std::vector<int> ca = mainChain(a), cb = mainChain(b);
+      classifyLimb(a, roles, &cb);  // each side judged with its mirror: the same roles on both
+      classifyLimb(b, roles, &ca);
       if (sk_.bones[a].parent >= 0) attachments.push_back(sk_.bones[a].parent);
     }
     if (pairs.empty()) {  // one limb on its own (an arm, a leg): the longest chain from the largest root
@@ -223,15 +224,18 @@ class TreeRoles {
   // One limb along its main chain: segments of nearly collinear bones (twist splits join); a first segment shorter
   // than 0.6 of the longest is its girdle (Shoulder: clavicle, hip bone), then Limb up to the longest segment and on while
   // segments reach 0.4 of it; the first shorter one after it, or a bone with three or more children (hand, foot), and
-  // everything after is Ignore.
-  void classifyLimb(int root, std::vector<BoneRole>& roles) const {
+  // everything after is Ignore. With the mirrored limb's main chain (`mate`), a joint counts as a twist split only
+  // when the mirrored joint is one too (twist splits come from each side's own skin weights, which a mesh that is not
+  // exactly symmetric makes differ), so mirrored limbs get the same roles.
+  void classifyLimb(int root, std::vector<BoneRole>& roles, const std::vector<int>* mate = nullptr) const {
     const std::vector<int> chain = mainChain(root);
     std::vector<int> segmentOf(chain.size(), 0);
     std::vector<double> segments{sk_.bones[chain[0]].length()};
     for (size_t k = 1; k < chain.size(); ++k) {
       const Bone &a = sk_.bones[chain[k - 1]], &b = sk_.bones[chain[k]];
       const double cosine = (a.tail - a.head).normalized().dot((b.tail - b.head).normalized());
-      const bool joined = twist_ ? (*twist_)[chain[k]] != 0
+      const bool mirrorTwist = !twist_ || !mate || k >= mate->size() || (*twist_)[(*mate)[k]] != 0;
+      const bool joined = twist_ ? (*twist_)[chain[k]] != 0 && mirrorTwist
                                  : (b.head - a.tail).norm() < 0.1 * a.length() && cosine > std::cos(0.26);
       if (!joined) segments.push_back(0.0);
       segments.back() += b.length();

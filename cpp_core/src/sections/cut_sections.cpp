@@ -311,15 +311,15 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
 // Mirrored twins
 // ============================================================================
 
-// A left and a right plane of one family and order whose frames mirror each other about the trunk's mirror
-// plane (through the first mirror-axis plane's origin, normal to its X axis; mirrored limbs' X axes are mirrored
-// and negated) give profiles where sample k of one mirrors sample N - k of the other in plane coordinates,
-// (x, y) -> (-x, y). When every pair matches within the tolerance, both become the average, exact mirror images.
+// A left and a right plane of one family and order whose frames mirror each other about the skeleton's mirror
+// plane (skeletonMirrorPlane: its left-right axis, whichever axis of the rig that is; mirrored limbs' X axes are
+// mirrored and negated, as makeCuttingPlanes orients them) give profiles where sample k of one mirrors sample N - k
+// of the other in plane coordinates, (x, y) -> (-x, y). When every pair matches within the tolerance, both become the
+// average, exact mirror images.
 void mirrorTwins(const std::vector<CuttingPlane>& planes, double tolerance, std::vector<SectionProfile>& out) {
   if (!(tolerance > 0)) return;
-  const auto axis = std::find_if(planes.begin(), planes.end(), [](const CuttingPlane& p) { return p.mirrorAxis; });
-  if (axis == planes.end()) return;
-  const Vec3 c = axis->origin, n = axis->xAxis.normalized();
+  Vec3 c, n;
+  if (!skeletonMirrorPlane(planes, c, n)) return;
   auto point = [&](const Vec3& p) { return Vec3(p - 2.0 * (p - c).dot(n) * n); };
   auto direction = [&](const Vec3& d) { return Vec3(d - 2.0 * d.dot(n) * n); };
   std::vector<char> taken(planes.size(), 0);

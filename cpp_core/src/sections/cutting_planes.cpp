@@ -108,11 +108,78 @@ void chainPlanes(const Skeleton& sk, const std::vector<int>& chain, const std::s
   }
 }
 
+
+// ============================================================================
+// Mirror frames
+// ============================================================================
+
+// Mirror image of point p about the plane through c with unit normal n.
+Vec3 mirrored(const Vec3& p, const Vec3& c, const Vec3& n) { return p - 2.0 * (p - c).dot(n) * n; }
+
+// Orients the frames for the skeleton's mirror plane (skeletonMirrorPlane): every mirror-axis plane gets its X axis
+// across the mirror plane (its y axis in it), whichever of its in-plane axes the spine's rest frame made sideways, and
+// of two limb planes that mirror each other (same order, origins within a quarter of `spacing`) the one on the
+// normal's negative side is turned half a turn where needed, so mirrored limbs' X axes are mirrored and negated (their +Y axes mirrored), as
+// the profiles' resampling from +Y and the mirrored twins assume (sections.h, ProfileOptions::mirrorLimbs).
+void orientMirrorFrames(std::vector<CuttingPlane>& planes, double spacing) {
+  Vec3 c, n;
+  if (!skeletonMirrorPlane(planes, c, n)) return;
+  for (CuttingPlane& p : planes) {
+    if (!p.mirrorAxis || std::abs(p.xAxis.dot(n)) >= std::abs(p.yAxis.dot(n))) continue;
+    const Vec3 x = p.yAxis.dot(n) >= 0 ? p.yAxis : Vec3(-p.yAxis);  // a quarter turn about the normal
+    p.xAxis = x;
+    p.yAxis = p.normal.cross(x).normalized();
+  }
+  for (size_t i = 0; i < planes.size(); ++i) {
+    const CuttingPlane& a = planes[i];
+    if (a.family != "limb") continue;
+    const Vec3 m = mirrored(a.origin, c, n);
+    int best = -1;
+    double nearest = 0.25 * spacing;
+    for (size_t j = 0; j < planes.size(); ++j) {
+      const CuttingPlane& b = planes[j];
+      if (b.family != "limb" || b.familyIndex <= a.familyIndex || b.order != a.order) continue;
+      const double d = (b.origin - m).norm();
+      if (d < nearest) nearest = d, best = static_cast<int>(j);
+    }
+    if (best < 0) continue;
+    const Vec3 mn = a.normal - 2.0 * a.normal.dot(n) * n, mx = a.xAxis - 2.0 * a.xAxis.dot(n) * n;
+    if (mn.dot(planes[best].normal) < 0.9 || mx.dot(planes[best].xAxis) <= 0) continue;
+    // The plane on the mirror normal's negative side turns (by place, not by bone order, which names can change).
+    CuttingPlane& b = (a.origin - c).dot(n) < 0 ? planes[i] : planes[best];
+    b.xAxis = -b.xAxis, b.yAxis = -b.yAxis;  // half a turn about the normal
+  }
+}
+
 }  // namespace
 
 // ============================================================================
 // Public
 // ============================================================================
+
+bool skeletonMirrorPlane(const std::vector<CuttingPlane>& planes, Vec3& c, Vec3& n) {
+  const auto axis = std::find_if(planes.begin(), planes.end(), [](const CuttingPlane& p) { return p.mirrorAxis; });
+  if (axis == planes.end()) return false;
+  std::vector<const CuttingPlane*> limb;
+  for (const CuttingPlane& p : planes)
+    if (p.family == "limb") limb.push_back(&p);
+  if (limb.size() < 2) return false;
+  double best = INFINITY;
+  c = axis->origin;
+  for (const Vec3& candidate : {axis->xAxis, axis->yAxis}) {
+    const Vec3 u = candidate.normalized();
+    double sum = 0.0;
+    for (const CuttingPlane* p : limb) {
+      const Vec3 m = mirrored(p->origin, c, u);
+      double nearest = INFINITY;
+      for (const CuttingPlane* q : limb)
+        if (q->familyIndex != p->familyIndex) nearest = std::min(nearest, (m - q->origin).squaredNorm());
+      sum += std::isfinite(nearest) ? nearest : 0.0;
+    }
+    if (sum < best) best = sum, n = u;
+  }
+  return true;
+}
 
 std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const std::vector<BoneRole>& roles,
                                             const PlaneOptions& options) {
@@ -210,6 +277,7 @@ std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const st
       planes.push_back(std::move(p));
     }
   }
+  orientMirrorFrames(planes, spacing);
   return planes;
 }
 
