@@ -23,7 +23,6 @@ using namespace myoskin;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kThreads = 2;
 
 double cpuMs() {

@@ -30,7 +30,6 @@ using namespace myoskin;
 namespace {
 
 constexpr int kBones = 60, kMuscles = 40, kJointsPerMuscle = 10, kJoints = kBones + kMuscles * kJointsPerMuscle;
-constexpr double kPi = 3.14159265358979323846;
 
 using Clock = std::chrono::steady_clock;
 double seconds(Clock::time_point a) { return std::chrono::duration<double>(Clock::now() - a).count(); }

@@ -36,7 +36,8 @@ PoseSequence sequenceArg(const DoubleArray& a, int numBones, double startFrame) 
   return s;
 }
 
-Points pointsArg(const DoubleArray& a, const char* name) {
+// #V by 3 float64 points from any array of that shape.
+Points dynamicsPointsArg(const DoubleArray& a, const char* name) {
   if (a.ndim() != 2 || a.shape(1) != 3) throw InputError(std::string(name) + " must be #V by 3");
   Points p(a.shape(0), 3);
   std::copy(a.data(), a.data() + a.size(), p.data());
@@ -301,7 +302,7 @@ void bindDynamics(py::module_& m) {
         if (t.ndim() != 2 || t.shape(1) != 3) throw InputError("triangles must be #F by 3");
         Triangles tri(t.shape(0), 3);
         std::copy(t.data(), t.data() + t.size(), tri.data());
-        return meanEdgeLength(pointsArg(v, "vertices"), tri);
+        return meanEdgeLength(dynamicsPointsArg(v, "vertices"), tri);
       },
       py::arg("vertices"), py::arg("triangles"), "The mesh's mean edge length (the temporal filter's length scale).");
 
@@ -312,7 +313,7 @@ void bindDynamics(py::module_& m) {
                            "Detail sculpted on one frame, kept in the surface's local frame (normal, edge tangent) "
                            "and re-applied on any frame.")
       .def(py::init([](const DoubleArray& reference, const IntArray& triangles, const DoubleArray& sculpted) {
-             const Points r = pointsArg(reference, "reference"), s = pointsArg(sculpted, "sculpted");
+             const Points r = dynamicsPointsArg(reference, "reference"), s = dynamicsPointsArg(sculpted, "sculpted");
              const Triangles t = trianglesArg(triangles);
              py::gil_scoped_release release;
              return std::make_unique<SculptDeltas>(r, t, s);
@@ -321,7 +322,7 @@ void bindDynamics(py::module_& m) {
       .def_static(
           "from_local",
           [](const IntArray& triangles, const DoubleArray& localDeltas, const py::object& framed) {
-            const Points l = pointsArg(localDeltas, "local_deltas");
+            const Points l = dynamicsPointsArg(localDeltas, "local_deltas");
             const Triangles t = trianglesArg(triangles);
             const std::vector<char> f = framedArg(framed, l.rows());
             py::gil_scoped_release release;
@@ -340,7 +341,7 @@ void bindDynamics(py::module_& m) {
       .def(
           "apply",
           [](SculptDeltas& d, const DoubleArray& positions) {
-            const Points p = pointsArg(positions, "positions");
+            const Points p = dynamicsPointsArg(positions, "positions");
             Points out;
             {
               py::gil_scoped_release release;
@@ -387,7 +388,7 @@ void bindDynamics(py::module_& m) {
           deltas.emplace(c.mesh.triangles, given.localDeltas(), given.framed());  // a copy of its own (buffers)
         }
         std::optional<Points> sculpted;
-        if (!sculpt.is_none()) sculpted = pointsArg(sculpt.cast<DoubleArray>(), "sculpt");
+        if (!sculpt.is_none()) sculpted = dynamicsPointsArg(sculpt.cast<DoubleArray>(), "sculpt");
         int first = startFrame, last = startFrame + static_cast<int>(seq.frames.size()) - 1;
         if (!frames.is_none()) {
           const auto range = frames.cast<std::pair<int, int>>();

@@ -16,7 +16,6 @@ using namespace myoskin;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // ============================================================================
 // Brute force: the nearest point of the parametric surface, a dense grid refined by a shrinking pattern search

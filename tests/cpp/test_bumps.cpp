@@ -17,7 +17,6 @@ using namespace myoskin;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // A limb section: circle of radius R (5 cm) with smooth bulges of height h (metres) and angular
 // half-width w (radians) at the given angles, sampled at n points counter-clockwise.

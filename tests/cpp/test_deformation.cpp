@@ -28,7 +28,6 @@ using namespace myoskin;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 const Skeleton& arm() {
   static const Skeleton s = makeSyntheticArm().character.skeleton;

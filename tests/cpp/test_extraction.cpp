@@ -16,7 +16,6 @@ using namespace myoskin;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // A family of planes perpendicular to +X at x = spacing * i, bone axis along X through the origin.
 SectionBumps plane(int i, double spacing = 0.02) {

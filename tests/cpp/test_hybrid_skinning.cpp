@@ -18,7 +18,6 @@ using namespace myoskin;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // The generated arm with its extracted muscles; the biceps (the anterior upper-arm muscle) gets its
 // anatomical attachments as a user would place them: origin near the shoulder, insertion on the forearm

@@ -19,7 +19,6 @@ using namespace myoskin;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kSize = 0.55;  // the limb's length (the character's size)
 
 // ============================================================================

@@ -29,7 +29,6 @@ using namespace myoskin;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 using K = CGAL::Exact_predicates_inexact_constructions_kernel;
 using SurfaceMesh = CGAL::Surface_mesh<K::Point_3>;

@@ -6,6 +6,9 @@
 
 namespace myoskin {
 
+// Pi, the one definition for the whole core (file-local copies collide in a unity build).
+constexpr double kPi = 3.14159265358979323846;
+
 using Vec2 = Eigen::Vector2d;
 using Vec3 = Eigen::Vector3d;
 using Mat3 = Eigen::Matrix3d;

@@ -37,7 +37,6 @@ namespace myoskin {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kAboveWeight = 0.02;      // lower envelope: least squares weight of points above the base
 constexpr int kBaseIterations = 12;        // reweighting passes (stops earlier when the weights settle)
 constexpr double kSmoothFraction = 0.01;   // residual smoothing: Gaussian sigma as a fraction of the perimeter

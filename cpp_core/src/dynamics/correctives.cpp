@@ -14,7 +14,6 @@ namespace myoskin {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 std::string degrees(double radians) {
   char buf[32];

@@ -15,7 +15,6 @@ namespace myoskin {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // ============================================================================
 // Muscle size

@@ -14,7 +14,6 @@
 
 namespace myoskin::limb {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
 
 constexpr double kFat = 0.003;             // fat layer over the limb core (metres)

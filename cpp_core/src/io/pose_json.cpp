@@ -13,7 +13,6 @@ namespace {
 
 using nlohmann::json;
 
-constexpr double kPi = 3.14159265358979323846;
 
 std::vector<double> numbers(const json& j, size_t count, const std::string& what) {
   if (!j.is_array() || j.size() != count) throw InputError(what + " needs " + std::to_string(count) + " numbers");

@@ -18,12 +18,12 @@ namespace myoskin {
 
 namespace {
 
-constexpr int kMaxJoints = 64;
-constexpr int kMaxStations = 2 * kMaxJoints + 1;
-constexpr double kMinStretch = 1e-3, kMaxStretch = 1e3;
+constexpr int kMaxRigJoints = 64;
+constexpr int kMaxRigStations = 2 * kMaxRigJoints + 1;
+constexpr double kMinMuscleStretch = 1e-3, kMaxMuscleStretch = 1e3;
 
 // Orthonormal rotation part of a posed bone matrix (posed bones may carry scale).
-Mat3 rotationOf(const Mat4& m) {
+Mat3 orthonormalRotationOf(const Mat4& m) {
   Mat3 r = m.topLeftCorner<3, 3>();
   Vec3 y = r.col(1).normalized();
   Vec3 x = (r.col(0) - r.col(0).dot(y) * y).normalized();
@@ -109,13 +109,13 @@ void MuscleRig::Impl::posedPath(int m, const Pose& pose, paths::ActionPath& path
     case WrapType::None: paths::straightPath(O, I, path); return;
     case WrapType::Joint: {
       const Mat4& wb = pose.matrices[mm.wrapBone];
-      const Vec3 side = rotationOf(pose.matrices[mm.sideBone]) * mm.sideLocal;
+      const Vec3 side = orthonormalRotationOf(pose.matrices[mm.sideBone]) * mm.sideLocal;
       paths::jointWrapPath(O, I, wb.topRightCorner<3, 1>(), mm.radius, side, path);
       return;
     }
     case WrapType::Bone: {
       const Mat4& wb = pose.matrices[mm.wrapBone];
-      const Mat3 R = rotationOf(wb);
+      const Mat3 R = orthonormalRotationOf(wb);
       // Right-handed (e1, e2, axis) = (Z, X, Y) of the bone.
       paths::boneWrapPath(O, I, wb.topRightCorner<3, 1>(), R.col(2), R.col(0), R.col(1), mm.radius, mm.side, path);
       return;
@@ -127,7 +127,7 @@ void MuscleRig::Impl::posedPath(int m, const Pose& pose, paths::ActionPath& path
 // rotation that takes the rest tangent to the posed one (both in the bone's frame).
 Mat3 boneCarriedFrame(const Mat4& boneMatrix, const Vec3& restTangentLocal, const Mat3& restFrameLocal, Vec3 t,
                       bool degenerate) {
-  const Mat3 R = rotationOf(boneMatrix);
+  const Mat3 R = orthonormalRotationOf(boneMatrix);
   if (degenerate) t = R * restTangentLocal;  // origin on the insertion: keep the rest direction
   const Vec3 tLocal = R.transpose() * t;
   const Mat3 turn = Eigen::Quaterniond::FromTwoVectors(restTangentLocal, tLocal).toRotationMatrix();
@@ -205,7 +205,7 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
         if (side.norm() < 1e-9) side = along.unitOrthogonal();
         side = mm.side * side.normalized();
         mm.sideBone = wb.parent >= 0 ? wb.parent : mm.wrapBone;
-        mm.sideLocal = rotationOf(rest.matrices[mm.sideBone]).transpose() * side;
+        mm.sideLocal = orthonormalRotationOf(rest.matrices[mm.sideBone]).transpose() * side;
       } else {
         const Vec3 axis = (wb.tail - wb.head).normalized();
         auto radial = [&](const Vec3& p) { Vec3 d = p - wb.head; return (d - d.dot(axis) * axis).norm(); };
@@ -215,12 +215,12 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
       }
     }
     mm.joints = options.jointsOverride > 0 ? options.jointsOverride : mu.joints;
-    if (mm.joints < 1 || mm.joints > kMaxJoints)
-      throw InputError("muscle '" + mu.name + "': joints must be in [1, " + std::to_string(kMaxJoints) + "], got " +
+    if (mm.joints < 1 || mm.joints > kMaxRigJoints)
+      throw InputError("muscle '" + mu.name + "': joints must be in [1, " + std::to_string(kMaxRigJoints) + "], got " +
                        std::to_string(mm.joints));
     mm.jointStride = std::max(1, (32 + mm.joints - 1) / mm.joints);
     mm.stations = 2 * mm.joints * mm.jointStride + 1;
-    while (mm.stations > kMaxStations) --mm.jointStride, mm.stations = 2 * mm.joints * mm.jointStride + 1;
+    while (mm.stations > kMaxRigStations) --mm.jointStride, mm.stations = 2 * mm.joints * mm.jointStride + 1;
     impl->models.push_back(mm);
 
     // Rest path and its start frame (X from the origin bone's X, made perpendicular to the tangent).
@@ -228,7 +228,7 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
     impl->posedPath(static_cast<int>(m), rest, path);
     MuscleModel& mr = impl->models.back();
     mr.restLength = path.length;
-    const Mat3 Rb = rotationOf(rest.matrices[mr.originBone]);
+    const Mat3 Rb = orthonormalRotationOf(rest.matrices[mr.originBone]);
     Vec3 p0, t0;
     paths::pointAt(path, 0.0, p0, t0);
     mr.tangentLocal = Rb.transpose() * t0;
@@ -237,7 +237,7 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
     F0 = impl->startFrame(static_cast<int>(m), rest, path);
     {
       const Mat3 Fe = paths::frameAt(path, F0, path.length);
-      const Mat3 Ri = rotationOf(rest.matrices[mr.insertionBone]);
+      const Mat3 Ri = orthonormalRotationOf(rest.matrices[mr.insertionBone]);
       mr.endTangentLocal = Ri.transpose() * Fe.col(1);
       mr.endFrameLocal = Ri.transpose() * Fe;
     }
@@ -384,9 +384,9 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     fits = state.surfaces[m].rows() == im.models[m].surface.numVertices();
   if (!fits) throw InputError("MuscleRig::evaluate: state was not made by this rig's makeState()");
 
-  double sig[kMaxStations];
-  Mat3 F[kMaxStations];
-  Vec3 P[kMaxStations];
+  double sig[kMaxRigStations];
+  Mat3 F[kMaxRigStations];
+  Vec3 P[kMaxRigStations];
   for (int m = 0; m < numMuscles(); ++m) {
     const MuscleModel& mm = im.models[m];
     paths::ActionPath path;
@@ -399,7 +399,7 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
       for (int i = 0; i < n; ++i)
         F[i] = Eigen::AngleAxisd(twist * mm.twistShare[first + i * step], F[i].col(1)).toRotationMatrix() * F[i];
     };
-    const double lambda = std::clamp(path.length / mm.restLength, kMinStretch, kMaxStretch);
+    const double lambda = std::clamp(path.length / mm.restLength, kMinMuscleStretch, kMaxMuscleStretch);
     const double mu = joints::bulgeMu(mm.bulge, lambda);
     state.length[m] = path.length;
     state.stretch[m] = lambda;

@@ -16,7 +16,6 @@ Vec3 planePoint(const CuttingPlane& plane, const Vec2& p) { return plane.origin 
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 Vec3 ellipseCenter3(const SectionBumps& s, const Ellipse2& e) { return planePoint(s.plane, e.center); }
 

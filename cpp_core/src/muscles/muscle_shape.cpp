@@ -19,7 +19,6 @@ namespace myoskin {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kBisections = 26;  // inside/outside bisection steps: 2^-26 of a ring radius, far below float noise
 
 // Number of rings of a surface with loftMuscleSurface's layout (R rings of M, then two poles); throws otherwise.

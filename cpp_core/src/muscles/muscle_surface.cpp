@@ -14,7 +14,6 @@ namespace myoskin {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // One ring to loft: an ellipse of semi-axes a, b whose axis a lies at `angle` from `ref` in the plane (center, normal).
 struct Ring {

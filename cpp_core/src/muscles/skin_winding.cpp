@@ -14,7 +14,6 @@ namespace myoskin {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kLeafSize = 8;
 constexpr double kFarFactor = 5.0;  // a cluster counts as one dipole beyond this times its radius (error ~ its square)
 constexpr int kMaxDepth = 64;

@@ -9,7 +9,6 @@ namespace myoskin::paths {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kTwoPi = 2 * kPi;
 
 // Angle in [0, 2 pi).

@@ -18,7 +18,6 @@ namespace myoskin {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kShareSteps = 100;  // shares tried: 0, 1/100, ..., 1
 
 // ============================================================================
