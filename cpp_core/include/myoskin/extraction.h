@@ -69,6 +69,12 @@ struct EndOptions {
   // brought to at most this fraction of its bone's length past the joint, as the gastrocnemius arises just above
   // the knee. 0 = off.
   double spanCarry = 0.2;
+  // A leg muscle's distal end that still lies on its belly's segment, the leg's last (the calf found from the thigh
+  // down the shin, the tibialis anterior), is carried over the ankle onto the foot, spanCarry of the foot past the
+  // joint along the shin, on the belly's side (spanDistalJoint): the calf's tendon reaches the heel behind the
+  // ankle, so plantar flexion shortens it. Legs only: the forearm's muscles onto the hand cost the elbow (see
+  // spanDistalJoint). false = off.
+  bool spanDistal = true;
 };
 
 struct SurfaceOptions {
@@ -389,6 +395,17 @@ Mesh loftMuscleSurface(const Muscle& muscle, const SurfaceOptions& options = {})
 // curve ends and joint wrap (not its surface: loftMuscleSurface). `twist` from twistSplits. Does nothing when
 // spanCarry is 0, the ends already lie on different segments, or there is no bone across the joint.
 void spanRealJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<char>& twist, const EndOptions& options);
+
+// Carries a leg muscle's distal end, when it lies on the segment of `bellyBone` (the bone its bumps were found on)
+// and that segment is its leg's last (the next bone across its distal real joint is no limb bone of `roles`, the
+// role map: the foot; a leg: the limb's girdle is a pelvis), over that joint onto the next bone
+// (EndOptions::spanCarry of that bone past the joint, along the segment), keeping the end section's offset from the
+// segment's axis: on the belly's side of the joint, so the calf's tendon reaches the heel behind the ankle and
+// shortens on plantar flexion. A muscle without a wrap gets a joint wrap of that offset's radius there (the tibialis
+// anterior's tendon stays in front of the ankle on plantar flexion); one it has stays. The root curve's ends are
+// rebuilt. Does nothing when spanDistal is off, spanCarry is 0, or the distal end already lies across that joint.
+void spanDistalJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<char>& twist,
+                     const std::vector<BoneRole>& roles, int bellyBone, const EndOptions& options);
 
 // The root curve's Hermite ends rebuilt to muscle.origin/insertion (positions), section u by arc length; the
 // surface is left as it was. Throws InputError on no sections or NaN positions.

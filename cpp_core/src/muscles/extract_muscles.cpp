@@ -664,6 +664,7 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
   tbb::parallel_for(size_t(0), kept.size(), [&](size_t i) {
     muscles[i] = buildMuscleEnds(kept[i], sections, sk, options.ends);
     if (!detail::trunkFamily(kept[i].family)) spanRealJoint(muscles[i], sk, twist, options.ends);  // act on a real joint
+    if (kept[i].family == "limb") spanDistalJoint(muscles[i], sk, twist, roles, kept[i].bone, options.ends);  // onto the foot
     muscles[i].confidence = kept[i].confidence;
   });
   std::vector<std::string> regions(kept.size());
