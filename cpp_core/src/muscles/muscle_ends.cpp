@@ -7,6 +7,7 @@
 #include "muscles/muscle_util.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
+#include "myoskin/muscle_shape.h"
 
 namespace myoskin {
 
@@ -310,10 +311,11 @@ void spanRealJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<c
   rewrapAndReattach(muscle, skeleton, options);
 }
 
-// A leg muscle whose distal end lies on its belly's segment, the leg's last: that end carried over the ankle onto the
-// foot, on the belly's side of the joint (the calf's tendon onto the heel).
+// A limb muscle whose distal end lies on its belly's segment, the limb's last, ending in a foot: that end carried
+// over the ankle onto the foot, on the belly's side of the joint (the calf's tendon onto the heel).
 void spanDistalJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<char>& twist,
-                     const std::vector<BoneRole>& roles, int bellyBone, const EndOptions& options) {
+                     const std::vector<BoneRole>& roles, int bellyBone, const EndOptions& options,
+                     const SkinWinding* skin) {
   if (!options.spanDistal || !(options.spanCarry > 0) || muscle.sections.empty()) return;
   const int n = skeleton.numBones();
   const int o = skeleton.find(muscle.origin.bone), e = skeleton.find(muscle.insertion.bone);
@@ -332,16 +334,16 @@ void spanDistalJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector
   // Only over the limb's last real joint (ankle, wrist): the next bone is its extremity, no limb bone of the role
   // map; a muscle on an inner segment keeps to the joint the end search and spanRealJoint gave it.
   if (below < 0 || roles[below] == BoneRole::Limb) return;
-  // Legs only (the limb's girdle, the first bone above it that is no limb bone, is a pelvis): carrying the forearm's
-  // muscles onto the hand moved their end taper down the forearm and cost MakeHuman's elbow 1.4 points of band
-  // volume and 13 crossing pairs at 120 degrees; the wrist has no measured case yet.
-  int girdle = skeleton.bones[root].parent;
-  while (girdle >= 0 && roles[girdle] == BoneRole::Limb) girdle = skeleton.bones[girdle].parent;
-  if (girdle < 0 || roles[girdle] != BoneRole::Pelvis) return;
+  // A foot, not a hand: the extremity turns across the limb (more than 45 degrees from the segment's axis), a lever
+  // whose heel the tendon reaches; a hand continues its forearm (MakeHuman 13 degrees against the foot's 73).
+  // Carrying the forearm's muscles onto the hand moved their end taper down the forearm and cost MakeHuman's
+  // elbow 1.4 points of band volume and 13 crossing pairs at 120 degrees; the wrist has no measured case yet.
   const Vec3 P = skeleton.bones[root].head, J = skeleton.bones[below].head;
   const Vec3 d = J - P;
-  if (!(d.norm() > 0)) return;
+  const Bone& extremity = skeleton.bones[below];
+  if (!(d.norm() > 0) || !(extremity.length() > 0)) return;
   const Vec3 axis = d.normalized();
+  if ((extremity.tail - extremity.head).normalized().dot(axis) > std::cos(M_PI / 4)) return;
   // The end nearer the distal joint must lie on the belly's segment (the other end on it or above it).
   const bool insertionDistal = (muscle.insertion.position - J).norm() <= (muscle.origin.position - J).norm();
   const int distalBone = insertionDistal ? e : o;
@@ -350,9 +352,19 @@ void spanDistalJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector
   // the joint along the limb, as the Achilles tendon behind the ankle), spanCarry of the next bone beyond it.
   const MuscleSection& end = insertionDistal ? muscle.sections.back() : muscle.sections.front();
   const Vec3 rel = end.center - P;
-  const Vec3 offset = rel - rel.dot(axis) * axis;
+  Vec3 offset = rel - rel.dot(axis) * axis;
   const Bone& next = skeleton.bones[below];
-  const MuscleAttachment carried{next.name, J + options.spanCarry * next.length() * axis + offset};
+  const Vec3 along = J + options.spanCarry * next.length() * axis;
+  if (skin) {  // the joint is thinner than the belly: the tendon keeps half the end section's b inside the skin
+    const double depth = 0.5 * end.b;
+    double t = 1.0;
+    for (; t > 0; t -= 0.125) {
+      const Vec3 p = along + t * offset;
+      if (skin->inside(p) && skin->distance(p) >= depth) break;
+    }
+    offset *= std::max(t, 0.0);
+  }
+  const MuscleAttachment carried{next.name, along + offset};
   (insertionDistal ? muscle.insertion : muscle.origin) = carried;
   // The tendon keeps the belly's offset over the joint (as a retinaculum holds it): a muscle without a wrap gets a
   // joint wrap of that radius there, so bending the joint away from the belly (plantar flexion for the tibialis
