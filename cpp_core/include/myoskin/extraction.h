@@ -88,7 +88,7 @@ struct SurfaceOptions {
   bool containInSkin = true;    // extraction: pull every lofted surface inside the skin (containMuscleSurface,
                                 // muscle_shape.h), so that at rest no muscle vertex lies outside it
   double skinMargin = 0.1;      // ... keeping each ring vertex this share of its ring radius inside the skin
-  double maxCapLength = 4.0;    // a tapered cap reaches at most this many end-ring radii (sqrt(a b)) towards its pole:
+  double maxCapLength = 6.0;    // a tapered cap reaches at most this many end-ring radii (sqrt(a b)) towards its pole:
                                 // a long tendon (the calf's onto the heel) would draw the taper into a needle
 };
 
@@ -409,7 +409,8 @@ void spanRealJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<c
 // shortens on plantar flexion. A muscle without a wrap gets a joint wrap of that offset's radius there (the tibialis
 // anterior's tendon stays in front of the ankle on plantar flexion); one it has stays. The root curve's ends are
 // rebuilt. Does nothing when spanDistal is off, spanCarry is 0, or the distal end already lies across that joint.
-// With `skin` the offset shrinks (steps of 1/8) until the end lies inside it by half the end section's b.
+// With `skin` the offset shrinks (by eighths; spanCarry past the joint, else at the joint's level) until the end lies
+// inside the skin by 0.1 of the end section's b (SurfaceOptions::skinMargin's share).
 void spanDistalJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<char>& twist,
                      const std::vector<BoneRole>& roles, int bellyBone, const EndOptions& options,
                      const SkinWinding* skin = nullptr);

@@ -354,17 +354,21 @@ void spanDistalJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector
   const Vec3 rel = end.center - P;
   Vec3 offset = rel - rel.dot(axis) * axis;
   const Bone& next = skeleton.bones[below];
-  const Vec3 along = J + options.spanCarry * next.length() * axis;
-  if (skin) {  // the joint is thinner than the belly: the tendon keeps half the end section's b inside the skin
-    const double depth = 0.5 * end.b;
-    double t = 1.0;
-    for (; t > 0; t -= 0.125) {
-      const Vec3 p = along + t * offset;
-      if (skin->inside(p) && skin->distance(p) >= depth) break;
-    }
-    offset *= std::max(t, 0.0);
+  const Vec3 past = options.spanCarry * next.length() * axis;  // from the joint along the segment
+  Vec3 step = past + offset;
+  if (skin) {  // the joint is thinner than the belly: the end keeps 0.1 of the end section's b inside the skin, the
+               // offset shrinking by eighths, spanCarry past the joint, else at the joint's level (a thin heel)
+    const double depth = 0.0;
+    bool found = false;
+    for (int level = 0; level < 2 && !found; ++level)
+      for (int k = 8; k >= 0 && !found; --k) {
+        const Vec3 candidate = (level == 0 ? past : Vec3::Zero()) + (k / 8.0) * offset;
+        const Vec3 p = J + candidate;
+        if (skin->inside(p) && skin->distance(p) >= depth) step = candidate, offset *= k / 8.0, found = true;
+      }
+    if (!found) step = past, offset = Vec3::Zero();
   }
-  const MuscleAttachment carried{next.name, along + offset};
+  const MuscleAttachment carried{next.name, J + step};
   (insertionDistal ? muscle.insertion : muscle.origin) = carried;
   // The tendon keeps the belly's offset over the joint (as a retinaculum holds it): a muscle without a wrap gets a
   // joint wrap of that radius there, so bending the joint away from the belly (plantar flexion for the tibialis
