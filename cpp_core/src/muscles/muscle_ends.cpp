@@ -374,7 +374,7 @@ void spanDistalJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector
   // joint wrap of that radius there, so bending the joint away from the belly (plantar flexion for the tibialis
   // anterior) carries its line round the joint instead of through it; a wrap the muscle already has (on the joint
   // it spanned before, the calf's knee) stays.
-  if (muscle.wrap.type == WrapType::None) {
+  if (muscle.wrap.type == WrapType::None && options.jointWrapFraction > 0) {  // 0: straight lines, as asked
     const Vec3& other = insertionDistal ? muscle.origin.position : muscle.insertion.position;
     const double r = std::min(offset.norm(), 0.8 * std::min((other - J).norm(), (carried.position - J).norm()));
     if (r > 0.01 * d.norm()) {
