@@ -105,8 +105,9 @@ void bindExtraction(py::module_& m) {
          double minRelative, double weakFraction, double minRelativeTrunk, bool mirrorLimbs, double faintRelative,
          double minEvidence, double jointWrap, double continuousFraction, double continuousEvidence,
          const std::map<std::string, std::string>& boneRoles, double referenceLimbRadius, double spindleEnds,
-         double twinReach) {
+         double twinReach, bool spanDistal) {
         ExtractionOptions o;
+        o.ends.spanDistal = spanDistal;
         if (!std::isfinite(referenceLimbRadius)) throw InputError("reference_limb_radius must be finite");
         o.referenceLimbRadius = referenceLimbRadius;
         for (const auto& [bone, role] : boneRoles) o.roleOverrides[bone] = boneRoleFromName(role);
@@ -163,6 +164,7 @@ void bindExtraction(py::module_& m) {
       py::arg("bone_roles") = std::map<std::string, std::string>{},
       py::arg("reference_limb_radius") = 0.0,
       py::arg("spindle_ends") = ExtractionOptions{}.spindleEnds, py::arg("twin_reach") = ExtractionOptions{}.twinReach,
+      py::arg("span_distal") = EndOptions{}.spanDistal,
       "Extract muscles from a character's skin (Yang & Zhang 2006). spacing: metres between cutting planes "
       "(0 = automatic); vertex_mask: #V booleans, extract only there; forced_regions: list of #V masks, one "
       "muscle forced per region; min_confidence: drop weaker muscles; max_per_region: keep the most confident "
@@ -178,7 +180,8 @@ void bindExtraction(py::module_& m) {
       "holds for (0 = the built-in reference, < 0 = the character's own units); spindle_ends: a limb chain below the "
       "length and height floors is kept when it is a closed spindle whose ends stay below this share of its peak "
       "(0 = off); twin_reach: such a limb chain is also kept when its mirror twin on the other limb passed the floors (its "
-      "centres within this times the chains' mean semi-axis a of the twin's, mirrored; 0 = off). Returns (muscles, report) where report has per-stage "
+      "centres within this times the chains' mean semi-axis a of the twin's, mirrored; 0 = off); span_distal: a leg muscle's distal end on the shin is carried over the ankle onto the "
+      "foot on the belly's side (the calf onto the heel; False = off). Returns (muscles, report) where report has per-stage "
       "counts, skipped sections with reasons, timings per stage (seconds), limb_radius and scale (the body scale), "
       "excluded (skin components left out: small or rigidly bound), analysed (any section looked at) and diagnosis "
       "(why nothing was found, else empty).");

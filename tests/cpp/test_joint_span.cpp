@@ -77,9 +77,11 @@ TEST(JointSpan, AnEndAcrossARealJointAttachesNearIt) {
     while (b >= 0 && twist[b]) b = c.skeleton.bones[b].parent;
     return b;
   };
-  const EndOptions ends;
+  ExtractionOptions options;
+  options.ends.spanDistal = false;  // the calves' insertions stay on the shin (CalvesSpanTheAnkle: onto the heel)
+  const EndOptions& ends = options.ends;
   int across = 0;
-  for (const Muscle& m : extractMuscles(c).muscles) {
+  for (const Muscle& m : extractMuscles(c, options).muscles) {
     const int o = c.skeleton.find(m.origin.bone), e = c.skeleton.find(m.insertion.bone);
     if (m.region.rfind("torso.", 0) == 0 || segment(o) == segment(e)) continue;
     const Bone& distal = c.skeleton.bones[segment(e)];
@@ -95,3 +97,38 @@ TEST(JointSpan, AnEndAcrossARealJointAttachesNearIt) {
   EXPECT_GE(across, 8);
 }
 
+
+TEST(JointSpan, CalvesSpanTheAnkleOntoTheHeel) {
+  // Issue 14 item 1, "calves to the heel": the calf, found from above the knee down the shin, inserts on the foot
+  // behind the ankle (the belly's side of the shin's axis), spanCarry of the foot below the ankle, while its origin
+  // stays near the knee (spanRealJoint); without spanDistal it ends on the shin.
+  const std::string path = test::sharedPath("characters/makehuman_muscular_male/makehuman_muscular_male.glb");
+  MYOSKIN_REQUIRE_SHARED(path);
+  const Character c = loadCharacter(path);
+  const Skeleton& sk = c.skeleton;
+  const EndOptions ends;
+  auto calvesOnTheFoot = [&](const ExtractionOptions& options) {
+    int count = 0;
+    for (const Muscle& m : extractMuscles(c, options).muscles) {
+      if (m.name.rfind("calf", 0) != 0) continue;
+      const bool left = m.name.back() == 'L';
+      const Bone& knee = sk.bones[sk.find(left ? "lowerleg01.L" : "lowerleg01.R")];
+      const Bone& foot = sk.bones[sk.find(left ? "foot.L" : "foot.R")];
+      if (m.insertion.bone != foot.name) continue;
+      ++count;
+      const Vec3 axis = (foot.head - knee.head).normalized();
+      const Vec3 belly = m.sections[m.sections.size() / 2].center - knee.head;
+      const Vec3 side = (belly - belly.dot(axis) * axis).normalized();  // the belly's side of the shin
+      const Vec3 rel = m.insertion.position - foot.head;
+      EXPECT_GT(rel.dot(side), 0.02 * (foot.head - knee.head).norm()) << m.name << ": not behind the ankle";
+      EXPECT_NEAR(rel.dot(axis), ends.spanCarry * foot.length(), 1e-9) << m.name;
+      EXPECT_LE((m.origin.position - knee.head).norm(), ends.spanCarry * sk.bones[knee.parent].length() * (1 + 1e-9))
+          << m.name << ": origin no longer near the knee";
+    }
+    return count;
+  };
+  EXPECT_EQ(calvesOnTheFoot(ExtractionOptions{}), 2);  // both legs
+  ExtractionOptions off;
+  off.ends.spanDistal = false;
+  EXPECT_EQ(calvesOnTheFoot(off), 0);
+}

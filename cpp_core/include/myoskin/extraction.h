@@ -16,6 +16,8 @@
 
 namespace myoskin {
 
+class SkinWinding;  // muscle_shape.h
+
 // ============================================================================
 // Options and results of the one-shot pipeline
 // ============================================================================
@@ -69,6 +71,12 @@ struct EndOptions {
   // brought to at most this fraction of its bone's length past the joint, as the gastrocnemius arises just above
   // the knee. 0 = off.
   double spanCarry = 0.2;
+  // A leg muscle's distal end that still lies on its belly's segment, the leg's last (the calf found from the thigh
+  // down the shin, the tibialis anterior), is carried over the ankle onto the foot, spanCarry of the foot past the
+  // joint along the shin, on the belly's side (spanDistalJoint): the calf's tendon reaches the heel behind the
+  // ankle, so plantar flexion shortens it. Feet only (an extremity across the limb): the forearm's muscles onto
+  // the hand cost the elbow (see spanDistalJoint). false = off.
+  bool spanDistal = true;
 };
 
 struct SurfaceOptions {
@@ -80,6 +88,8 @@ struct SurfaceOptions {
   bool containInSkin = true;    // extraction: pull every lofted surface inside the skin (containMuscleSurface,
                                 // muscle_shape.h), so that at rest no muscle vertex lies outside it
   double skinMargin = 0.1;      // ... keeping each ring vertex this share of its ring radius inside the skin
+  double maxCapLength = 6.0;    // a tapered cap reaches at most this many end-ring radii (sqrt(a b)) towards its pole:
+                                // a long tendon (the calf's onto the heel) would draw the taper into a needle
 };
 
 struct ExtractionOptions {
@@ -393,6 +403,21 @@ Mesh loftMuscleSurface(const Muscle& muscle, const SurfaceOptions& options = {})
 // curve ends and joint wrap (not its surface: loftMuscleSurface). `twist` from twistSplits. Does nothing when
 // spanCarry is 0, the ends already lie on different segments, or there is no bone across the joint.
 void spanRealJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<char>& twist, const EndOptions& options);
+
+// Carries a limb muscle's distal end, when it lies on the segment of `bellyBone` (the bone its bumps were found on)
+// and that segment is its limb's last (the next bone across its distal real joint is no limb bone of `roles`, the
+// role map) and that next bone is a foot (turned more than 45 degrees from the segment's axis: a lever across the
+// limb; a hand continues its forearm), over that joint onto the next bone
+// (EndOptions::spanCarry of that bone past the joint, along the segment), keeping the end section's offset from the
+// segment's axis: on the belly's side of the joint, so the calf's tendon reaches the heel behind the ankle and
+// shortens on plantar flexion. A muscle without a wrap gets a joint wrap of that offset's radius there (the tibialis
+// anterior's tendon stays in front of the ankle on plantar flexion); one it has stays. The root curve's ends are
+// rebuilt. Does nothing when spanDistal is off, spanCarry is 0, or the distal end already lies across that joint.
+// With `skin` the offset shrinks (by eighths; spanCarry past the joint, else at the joint's level) until the end lies
+// inside the skin by 0.1 of the end section's b (SurfaceOptions::skinMargin's share).
+void spanDistalJoint(Muscle& muscle, const Skeleton& skeleton, const std::vector<char>& twist,
+                     const std::vector<BoneRole>& roles, int bellyBone, const EndOptions& options,
+                     const SkinWinding* skin = nullptr);
 
 // The root curve's Hermite ends rebuilt to muscle.origin/insertion (positions), section u by arc length; the
 // surface is left as it was. Throws InputError on no sections or NaN positions.

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <numeric>
 
 #include "muscles/muscle_names.h"
@@ -634,9 +635,13 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
   t0 = Clock::now();
   std::vector<Muscle> muscles(kept.size());
   const std::vector<char> twist = twistSplits(character);
+  std::unique_ptr<SkinWinding> skinWinding;  // keeps the ends carried onto the foot inside the skin
+  if (options.ends.spanDistal && std::any_of(kept.begin(), kept.end(), [](const MuscleChain& k) { return k.family == "limb"; }))
+    skinWinding = std::make_unique<SkinWinding>(character.mesh.vertices, character.mesh.triangles);
   tbb::parallel_for(size_t(0), kept.size(), [&](size_t i) {
     muscles[i] = buildMuscleEnds(kept[i], sections, sk, options.ends);
     if (!detail::trunkFamily(kept[i].family)) spanRealJoint(muscles[i], sk, twist, options.ends);  // act on a real joint
+    if (kept[i].family == "limb") spanDistalJoint(muscles[i], sk, twist, roles, kept[i].bone, options.ends, skinWinding.get());  // onto the foot
     muscles[i].confidence = kept[i].confidence;
   });
   std::vector<std::string> regions(kept.size());

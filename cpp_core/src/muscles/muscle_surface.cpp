@@ -197,6 +197,8 @@ Mesh loftMuscleSurface(const Muscle& muscle, const SurfaceOptions& options) {
     }
     const bool dome = !(h >= 0.5 * radius);
     if (dome) h = 0.5 * radius, pole = end.center + h * outward;
+    const double reach = options.maxCapLength * radius;  // a long tendon: the cap stops short of its pole
+    if (!dome && reach > 0 && h > reach) pole = end.center + (reach / h) * (pole - end.center), h = reach;
     const Vec3 side = pole - end.center - h * outward;
     std::vector<std::vector<Vec3>> caps;
     for (int j = 1; j <= K; ++j) {
