@@ -253,6 +253,13 @@ def _stem_and_side(name):
     return re.sub(r"_\d+$", "", stem), side
 
 
+def _nearest_true_muscle(truth, muscle):
+    """The true muscle whose centre line lies nearest, on average, to the found muscle's section centres."""
+    centres = np.asarray(muscle.section_centers)
+    return min(truth, key=lambda t: np.mean(
+        [np.min(np.linalg.norm(np.asarray(t["center_line"]) - p, axis=1)) for p in centres]))
+
+
 def test_anatomical_names_agree_with_the_generators_truth(core):
     """Held-out generated bodies (seeds 20-23, biped and quadruped): a muscle named for its place (biceps.L,
     calf.R, ...) lies nearest a true muscle of that name and side (the generator's brachialis, in front of the
@@ -266,9 +273,7 @@ def test_anatomical_names_agree_with_the_generators_truth(core):
                 stem, side = _stem_and_side(m.name)
                 if stem not in ANATOMICAL:
                     continue
-                centres = np.asarray(m.section_centers)
-                nearest = min(truth, key=lambda t: np.mean(
-                    [np.min(np.linalg.norm(np.asarray(t["center_line"]) - p, axis=1)) for p in centres]))
+                nearest = _nearest_true_muscle(truth, m)
                 true_stem, true_side = nearest["name"].rsplit(".", 1)
                 checked += 1
                 if true_stem not in ANATOMICAL[stem] or true_side != side:
@@ -302,9 +307,7 @@ def test_muscles_no_place_names_anatomically_are_named_by_region_and_side(core):
                 assert match, (kind, seed, m.name)
                 if match.group(1) not in ("upper_arm", "forearm", "thigh", "shin"):
                     continue
-                centres = np.asarray(m.section_centers)
-                nearest = min(truth, key=lambda t: np.mean(
-                    [np.min(np.linalg.norm(np.asarray(t["center_line"]) - p, axis=1)) for p in centres]))
+                nearest = _nearest_true_muscle(truth, m)
                 true_stem, true_side = nearest["name"].rsplit(".", 1)
                 checked += 1
                 if REGION_OF_TRUTH.get(true_stem) != match.group(1) or true_side != side:

@@ -681,23 +681,14 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
     Muscle& m = muscles[i];
     const Bone& bone = sk.bones[kept[i].bone];
     const Vec3 mid = m.sections[m.sections.size() / 2].center;
-    const std::string anatomical = detail::anatomicalName(m, kept[i].bone, kept[i].family, sk, frame);
-    if (!anatomical.empty()) {
-      const size_t dot = anatomical.find('.');
-      const std::string stem = anatomical.substr(0, dot), side = dot == std::string::npos ? "" : anatomical.substr(dot);
-      const int k = ++nameCount[anatomical];
-      m.name = k == 1 ? anatomical : stem + "_" + std::to_string(k) + side;
-      if (kept[i].forced) ++rep.forced;
-      result.muscles.push_back(std::move(m));
-      continue;
-    }
-    // By region where the body frame places it ("forearm_front.L", a second one "forearm_front_2.L"), else by bone.
-    const std::string region = detail::regionName(m, kept[i].bone, kept[i].family, sk, frame);
-    if (!region.empty()) {
-      const size_t dot = region.find('.');
-      const std::string stem = region.substr(0, dot), side = dot == std::string::npos ? "" : region.substr(dot);
-      const int k = ++nameCount[region];
-      m.name = k == 1 ? region : stem + "_" + std::to_string(k) + side;
+    // Anatomical where the place identifies it, else by region ("forearm_front.L"); a second one "biceps_2.L".
+    std::string placed = detail::anatomicalName(m, kept[i].bone, kept[i].family, sk, frame);
+    if (placed.empty()) placed = detail::regionName(m, kept[i].bone, kept[i].family, sk, frame);
+    if (!placed.empty()) {
+      const size_t dot = placed.find('.');
+      const std::string stem = placed.substr(0, dot), side = dot == std::string::npos ? "" : placed.substr(dot);
+      const int k = ++nameCount[placed];
+      m.name = k == 1 ? placed : stem + "_" + std::to_string(k) + side;
       if (kept[i].forced) ++rep.forced;
       result.muscles.push_back(std::move(m));
       continue;
