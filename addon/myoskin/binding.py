@@ -213,6 +213,8 @@ def ensure_share_convention(skin):
     if skin.vertex_groups.get(VOLUME_BLEND_GROUP) is None or written in (None, _share_convention()):
         return False
     write_share_group(skin, read_share_group(skin))
+    if not any(is_volume_blend_modifier(m) for m in skin.modifiers):  # switched off: no linear group to keep
+        skin.vertex_groups.remove(skin.vertex_groups[LINEAR_GROUP])
     return True
 
 
