@@ -18,21 +18,12 @@
 #include "myoskin/extraction.h"
 #include "myoskin/io.h"
 #include "myoskin/synthetic_character.h"
+#include "line_distance.h"
 
 using namespace myoskin;
+using myoskin::bench::lineDistance;
 
 namespace {
-
-// Distance of p from a polyline.
-double lineDistance(const Vec3& p, const std::vector<Vec3>& line) {
-  double best = INFINITY;
-  for (size_t k = 1; k < line.size(); ++k) {
-    const Vec3 d = line[k] - line[k - 1];
-    const double t = d.squaredNorm() > 0 ? std::clamp((p - line[k - 1]).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
-    best = std::min(best, (p - (line[k - 1] + t * d)).norm());
-  }
-  return best;
-}
 
 // Share of the centre line's length (by its points) where relief >= half its peak.
 double visibleShare(const TrueMuscle& m) {
