@@ -258,19 +258,27 @@ def add_volume_blend(skin, arm, share):
     return mod
 
 
-def remove_volume_blend(skin, arm):
-    """Unbind: remove the volume blend's modifier, share group and linear group, and give the first modifier its
-    whole skin back (its Preserve Volume is restored by the caller from the bind record)."""
+def _switch_volume_blend_off(skin, arm):
+    """Remove the volume blend's second modifier and linear group and give the first modifier its whole skin back
+    (the share group stays)."""
     mod = volume_blend_modifier(skin, arm)
     if mod is not None:
         skin.modifiers.remove(mod)
     first = armature_modifier(skin, arm)
     if first is not None and first.vertex_group == LINEAR_GROUP:
         first.vertex_group = ""
-    for name in (VOLUME_BLEND_GROUP, LINEAR_GROUP):
-        group = skin.vertex_groups.get(name)
-        if group is not None:
-            skin.vertex_groups.remove(group)
+    group = skin.vertex_groups.get(LINEAR_GROUP)
+    if group is not None:
+        skin.vertex_groups.remove(group)
+
+
+def remove_volume_blend(skin, arm):
+    """Unbind: remove the volume blend's modifier, share group and linear group, and give the first modifier its
+    whole skin back (its Preserve Volume is restored by the caller from the bind record)."""
+    _switch_volume_blend_off(skin, arm)
+    group = skin.vertex_groups.get(VOLUME_BLEND_GROUP)
+    if group is not None:
+        skin.vertex_groups.remove(group)
     if SHARE_CONVENTION_KEY in skin:
         del skin[SHARE_CONVENTION_KEY]
 
@@ -397,14 +405,7 @@ def apply_volume_blend(arm):
             elif volume_blend_modifier(skin, arm) is None:
                 add_volume_blend(skin, arm, share)
             continue
-        mod = volume_blend_modifier(skin, arm)
-        if mod is not None:
-            skin.modifiers.remove(mod)
-        if first.vertex_group == LINEAR_GROUP:
-            first.vertex_group = ""
-        group = skin.vertex_groups.get(LINEAR_GROUP)
-        if group is not None:
-            skin.vertex_groups.remove(group)
+        _switch_volume_blend_off(skin, arm)
         first.use_deform_preserve_volume = state.preserve_volume
     record, problem = read_bind_record_or_empty(arm)
     if not problem and record and not waiting:
