@@ -104,9 +104,11 @@ matrix_build() {
   matrix_enabled || return 0
   local other; other="$(matrix_other_suite "$(matrix_host_suite)")"
   local dir runner; dir="$(matrix_suite_build_dir "$other")"; runner="$(matrix_runner "$other")"
-  if [ ! -f "$dir/CMakeCache.txt" ]; then
+  # A unity build in batches of 8 (only the core and the module are built here): 161 CPU s from scratch against
+  # 252 file by file (measured in the trixie chroot, stop 26). A tree configured before is configured again.
+  if ! grep -qs '^CMAKE_UNITY_BUILD:BOOL=ON' "$dir/CMakeCache.txt"; then
     $runner cmake -S "$ROOT" -B "$dir" -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3 \
-      -DMYOSKIN_BUILD_BENCHMARKS=OFF -DMYOSKIN_BUILD_TESTS=OFF
+      -DMYOSKIN_BUILD_BENCHMARKS=OFF -DMYOSKIN_BUILD_TESTS=OFF -DCMAKE_UNITY_BUILD=ON -DCMAKE_UNITY_BUILD_BATCH_SIZE=8
   fi
   $runner cmake --build "$dir" -j "$JOBS" --target myoskin stage_addon
 }
