@@ -109,7 +109,7 @@ void bindExtraction(py::module_& m) {
         ExtractionOptions o;
         o.ends.spanDistal = spanDistal;
         if (!std::isfinite(referenceLimbRadius)) throw InputError("reference_limb_radius must be finite");
-        o.referenceLimbRadius = referenceLimbRadius;
+        o.scale.referenceLimbRadius = referenceLimbRadius;
         for (const auto& [bone, role] : boneRoles) o.roleOverrides[bone] = boneRoleFromName(role);
         if (spacing < 0) throw InputError("spacing must be >= 0 (0 = automatic)");
         if (minConfidence < 0 || minConfidence > 1) throw InputError("min_confidence must be in [0, 1]");
@@ -120,22 +120,22 @@ void bindExtraction(py::module_& m) {
         if (!(jointWrap >= 0)) throw InputError("joint_wrap must be >= 0");
         o.ends.jointWrapFraction = jointWrap;
         if (!(faintRelative >= 0 && faintRelative <= 1)) throw InputError("faint_relative must be in [0, 1]");
-        o.faintRelative = faintRelative;
+        o.sectionBumps.faintRelative = faintRelative;
         if (!(minEvidence >= 0)) throw InputError("min_evidence must be >= 0");
-        o.minEvidence = minEvidence;
+        o.filters.minEvidence = minEvidence;
         if (!(continuousFraction > 0 && continuousFraction <= 1)) throw InputError("continuous_fraction must be in (0, 1]");
         if (!(continuousEvidence >= 0)) throw InputError("continuous_evidence must be >= 0");
-        o.continuousFraction = continuousFraction;
-        o.continuousEvidence = continuousEvidence;
+        o.filters.continuousFraction = continuousFraction;
+        o.filters.continuousEvidence = continuousEvidence;
         if (!(spindleEnds >= 0 && spindleEnds <= 1)) throw InputError("spindle_ends must be in [0, 1]");
-        o.spindleEnds = spindleEnds;
-        o.twinReach = twinReach;  // validated by the core (InputError -> ValueError)
-        o.minRelative = minRelative;
-        o.minRelativeTrunk = minRelativeTrunk;
+        o.filters.spindleEnds = spindleEnds;
+        o.filters.twinReach = twinReach;  // validated by the core (InputError -> ValueError)
+        o.filters.minRelative = minRelative;
+        o.filters.minRelativeTrunk = minRelativeTrunk;
         o.profiles.mirrorLimbs = mirrorLimbs;
-        o.weakFraction = weakFraction;
+        o.sectionBumps.weakFraction = weakFraction;
         o.planes.spacing = spacing;
-        o.minConfidence = minConfidence;
+        o.filters.minConfidence = minConfidence;
         o.link.minSections = minSections;
         o.maxPerRegion = std::max(0, maxPerRegion);
         o.buildSurfaces = buildSurfaces;
@@ -150,20 +150,20 @@ void bindExtraction(py::module_& m) {
         return py::make_tuple(py::cast(r.muscles), reportToDict(r.report));
       },
       py::arg("character"), py::arg("spacing") = 0.0, py::arg("vertex_mask") = py::none(),
-      py::arg("min_confidence") = ExtractionOptions{}.minConfidence, py::arg("min_sections") = LinkOptions{}.minSections, py::arg("max_per_region") = 0,
+      py::arg("min_confidence") = ExtractionOptions{}.filters.minConfidence, py::arg("min_sections") = LinkOptions{}.minSections, py::arg("max_per_region") = 0,
       py::arg("forced_regions") = py::none(), py::arg("build_surfaces") = true,
-      py::arg("min_relative") = ExtractionOptions{}.minRelative,
-      py::arg("weak_fraction") = ExtractionOptions{}.weakFraction,
-      py::arg("min_relative_trunk") = ExtractionOptions{}.minRelativeTrunk,
+      py::arg("min_relative") = ExtractionOptions{}.filters.minRelative,
+      py::arg("weak_fraction") = ExtractionOptions{}.sectionBumps.weakFraction,
+      py::arg("min_relative_trunk") = ExtractionOptions{}.filters.minRelativeTrunk,
       py::arg("mirror_limbs") = ProfileOptions{}.mirrorLimbs,
-      py::arg("faint_relative") = ExtractionOptions{}.faintRelative,
-      py::arg("min_evidence") = ExtractionOptions{}.minEvidence,
+      py::arg("faint_relative") = ExtractionOptions{}.sectionBumps.faintRelative,
+      py::arg("min_evidence") = ExtractionOptions{}.filters.minEvidence,
       py::arg("joint_wrap") = EndOptions{}.jointWrapFraction,
-      py::arg("continuous_fraction") = ExtractionOptions{}.continuousFraction,
-      py::arg("continuous_evidence") = ExtractionOptions{}.continuousEvidence,
+      py::arg("continuous_fraction") = ExtractionOptions{}.filters.continuousFraction,
+      py::arg("continuous_evidence") = ExtractionOptions{}.filters.continuousEvidence,
       py::arg("bone_roles") = std::map<std::string, std::string>{},
       py::arg("reference_limb_radius") = 0.0,
-      py::arg("spindle_ends") = ExtractionOptions{}.spindleEnds, py::arg("twin_reach") = ExtractionOptions{}.twinReach,
+      py::arg("spindle_ends") = ExtractionOptions{}.filters.spindleEnds, py::arg("twin_reach") = ExtractionOptions{}.filters.twinReach,
       py::arg("span_distal") = EndOptions{}.spanDistal,
       "Extract muscles from a character's skin (Yang & Zhang 2006). spacing: metres between cutting planes "
       "(0 = automatic); vertex_mask: #V booleans, extract only there; forced_regions: list of #V masks, one "
