@@ -523,8 +523,11 @@ TEST(Measured, DeterministicAndUserControl) {
   EXPECT_GT(limited.report.droppedRegionLimit, 0);
   for (const Muscle& m : limited.muscles) EXPECT_LE(++perRegion[m.region], 1) << m.region;
   o = {};
-  o.filters.minConfidence = 1.01;
+  o.filters.minConfidence = 1.0;
   EXPECT_EQ(extractMuscles(arm.character, o).muscles.size(), 0u);
+  o.filters.minConfidence = 1.01;  // out of range
+  EXPECT_THROW(extractMuscles(arm.character, o), InputError);
+  o.filters.minConfidence = 0.5;
   // A peak-magnitude floor only removes muscles: no belly stands out half its section's radius, and every
   // significant bump stands out at least minProtrusion (3.5 mm), over 5 % of these sections' radius. (The spindle
   // rule keeps closed spindles below the floor: off here; 5 of the arm's 6 muscles are such spindles.)

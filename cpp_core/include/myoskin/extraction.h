@@ -208,8 +208,12 @@ struct ChainFilterOptions {
   double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones are kept)
 };
 
-// Body scale (stage 0, makeScaleContext): the power of ten the character is scaled by for the analysis.
+// Body scale (stage 0, makeScaleContext): the power of ten the character is scaled by for the analysis, and the
+// plane spacing in limb radii.
 struct BodyScaleOptions {
+  double spacing = 0.0;                        // cutting-plane spacing in limb radii (bodyLimbRadius; 2 = a limb's
+                                               // diameter); 0 = planes.spacing (in the character's units), which
+                                               // itself 0 = automatic (1/80 of the skin's largest extent)
   double referenceLimbRadius = 0.0;            // body scale: the defaults' lengths (every one but planes.spacing, which is
                                                // in the character's own units, and the stages' inner tolerances) hold for
                                                // a character in metres. Its units are found from its limb radius
@@ -220,7 +224,11 @@ struct BodyScaleOptions {
                                                // < 0 = analyse in the file's own units
 };
 
-// Every option of the pipeline, stage by stage (the expert object; the user-facing few: README "Muscle extraction").
+// Every option of the pipeline, stage by stage: the expert object (expertOptionKeys). The user-facing few, each
+// body-relative (README "Muscle extraction"; Python extract_muscles' keywords, the CLI's and batch's flags):
+//   scale.spacing (plane spacing in limb radii, 0 = automatic), filters.minConfidence (0-1), link.minSections
+//   (significant sections a muscle needs), maxPerRegion (0 = all), ends.jointWrapFraction (joint wrap radius in the
+//   muscle's semi-axes b, 0 = straight lines); data, not knobs: roleOverrides, vertexMask, forcedRegions.
 struct ExtractionOptions {
   PlaneOptions planes;          // spacing etc. of the cutting planes (sections.h)
   ProfileOptions profiles;      // profile resampling (sections.h)
@@ -306,8 +314,30 @@ struct ExtractionResult {
   ExtractionReport report;
 };
 
-// Throws InputError for an invalid character or a mask of the wrong size.
+// Throws InputError for an invalid character, a mask of the wrong size or an option out of its range.
 ExtractionResult extractMuscles(const Character& character, const ExtractionOptions& options = {});
+
+// ============================================================================
+// Expert options by name (CLI --expert KEY=VALUE / --options FILE.json, Python extract_muscles(options={...}))
+// ============================================================================
+
+// One tunable option of ExtractionOptions: its key (the field path, e.g. "filters.minEvidence"), its type
+// ("double", "int" or "bool") and its default. The user-facing five (ExtractionOptions) are not among them.
+struct ExpertOption {
+  std::string key;
+  std::string type;
+  double defaultValue = 0.0;
+};
+
+// Every expert option, in ExtractionOptions' order.
+std::vector<ExpertOption> expertOptions();
+
+// Sets one expert option by key. Throws InputError on an unknown key, a non-finite value, a non-integer value for
+// an int, or a value other than 0 / 1 for a bool (ranges are checked by extractMuscles).
+void setExpertOption(ExtractionOptions& options, const std::string& key, double value);
+
+// The current value of one expert option (bools as 0 / 1). Throws InputError on an unknown key.
+double expertOption(const ExtractionOptions& options, const std::string& key);
 
 // ============================================================================
 // Body scale and the parts of the skin that are analysed

@@ -20,6 +20,7 @@ ScaleContext makeScaleContext(const Character& body, const std::map<std::string,
   s.limbRadius = bodyLimbRadius(body, roles);
   const double reference = options.referenceLimbRadius == 0 ? kReferenceLimbRadius : options.referenceLimbRadius;
   s.factor = reference > 0 && s.limbRadius > 0 ? std::pow(10.0, std::round(std::log10(reference / s.limbRadius))) : 1.0;
+  if (options.spacing > 0) spacing = options.spacing * s.limbRadius;  // limb radii -> the character's units
   s.planeSpacing = spacing * s.factor;
   return s;
 }

@@ -54,6 +54,30 @@ void validateExtraction(const Character& character, const ExtractionOptions& opt
       throw InputError("forced region " + std::to_string(r) + " has " + std::to_string(options.forcedRegions[r].size()) +
                        " entries, the skin has " + std::to_string(nv) + " vertices");
   if (!std::isfinite(options.scale.referenceLimbRadius)) throw InputError("referenceLimbRadius must be finite");
+  // The user-facing options (named as the CLI and Python name them too) and the expert floors.
+  auto require = [](bool ok, const char* what) {
+    if (!ok) throw InputError(what);
+  };
+  require(options.scale.spacing >= 0 && std::isfinite(options.scale.spacing),
+          "spacing (scale.spacing) must be >= 0 limb radii (0 = automatic)");
+  require(options.planes.spacing >= 0 && std::isfinite(options.planes.spacing),
+          "planes.spacing must be >= 0 (0 = automatic)");
+  require(options.filters.minConfidence >= 0 && options.filters.minConfidence <= 1,
+          "min_confidence (filters.minConfidence) must be in [0, 1]");
+  require(options.link.minSections >= 1, "min_sections (link.minSections) must be >= 1");
+  require(options.maxPerRegion >= 0, "max_per_region (maxPerRegion) must be >= 0 (0 = all)");
+  require(options.ends.jointWrapFraction >= 0 && std::isfinite(options.ends.jointWrapFraction),
+          "joint_wrap (ends.jointWrapFraction) must be >= 0 (0 = straight lines)");
+  require(options.sectionBumps.weakFraction > 0 && options.sectionBumps.weakFraction <= 1,
+          "sectionBumps.weakFraction must be in (0, 1]");
+  require(options.sectionBumps.faintRelative >= 0 && options.sectionBumps.faintRelative <= 1,
+          "sectionBumps.faintRelative must be in [0, 1]");
+  require(options.filters.minRelative >= 0, "filters.minRelative must be >= 0");
+  require(options.filters.minRelativeTrunk >= 0, "filters.minRelativeTrunk must be >= 0");
+  require(options.filters.minEvidence >= 0, "filters.minEvidence must be >= 0");
+  require(options.filters.continuousFraction > 0 && options.filters.continuousFraction <= 1,
+          "filters.continuousFraction must be in (0, 1]");
+  require(options.filters.continuousEvidence >= 0, "filters.continuousEvidence must be >= 0");
   if (options.sectionBumps.trunkHarmonics < 0 || options.sectionBumps.trunkHarmonics > 16)
     throw InputError("trunkHarmonics must be in [0, 16], got " + std::to_string(options.sectionBumps.trunkHarmonics));
   if (!(options.filters.spindleEnds >= 0.0 && options.filters.spindleEnds <= 1.0) || options.filters.spindleSections < 0 ||

@@ -40,7 +40,9 @@ struct BodySurface {
 // Validates the inputs (sizes of the masks, finite reference) and builds the body surface and its scale context.
 BodySurface makeBodySurface(const Character& character, const ExtractionOptions& options);
 
-// The scale context of a body in the character's units (before scaling); `spacing` in the character's units.
+// The scale context of a body in the character's units (before scaling): its limb radius, the units factor, and the
+// plane spacing from options.spacing (limb radii) or, when that is 0, from `spacing` (PlaneOptions::spacing, the
+// character's units; 0 = automatic). defaultSpacing and meanEdgeLength are filled by makeBodySurface.
 ScaleContext makeScaleContext(const Character& body, const std::map<std::string, BoneRole>& roleOverrides,
                               const BodyScaleOptions& options, double spacing);
 
