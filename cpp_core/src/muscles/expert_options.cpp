@@ -11,14 +11,14 @@ namespace myoskin {
 namespace {
 
 // One field: its key (the field path) and type ('d', 'i', 'b'), and where it lives in an ExtractionOptions.
-struct Field {
+struct ExpertField {
   const char* key;
   char type;
   void* (*at)(ExtractionOptions&);
 };
 
 #define MYOSKIN_FIELD(path, T, code)                                        \
-  Field {                                                                   \
+  ExpertField {                                                                   \
     #path, code, [](ExtractionOptions& o) -> void* {                        \
       static_assert(std::is_same_v<decltype(o.path), T>, #path " is no " #T); \
       return &o.path;                                                       \
@@ -29,8 +29,8 @@ struct Field {
 #define MYOSKIN_BOOL(path) MYOSKIN_FIELD(path, bool, 'b')
 
 // Every expert option (the user-facing five, planes.spacing and the derived link.faint* left out).
-const std::vector<Field>& fields() {
-  static const std::vector<Field> table = {
+const std::vector<ExpertField>& expertFields() {
+  static const std::vector<ExpertField> table = {
     MYOSKIN_DOUBLE(planes.endMargin),
     MYOSKIN_DOUBLE(planes.bendAngle),
     MYOSKIN_DOUBLE(planes.shoulderStart),
@@ -93,15 +93,15 @@ const std::vector<Field>& fields() {
 #undef MYOSKIN_DOUBLE
 #undef MYOSKIN_FIELD
 
-const Field& field(const std::string& key) {
-  for (const Field& f : fields())
+const ExpertField& expertField(const std::string& key) {
+  for (const ExpertField& f : expertFields())
     if (key == f.key) return f;
   throw InputError("unknown expert extraction option '" + key +
                    "' (the keys are ExtractionOptions' field paths, e.g. filters.minEvidence: myoskin extract "
                    "--expert list, Python extraction_options())");
 }
 
-double read(const Field& f, ExtractionOptions& o) {
+double readField(const ExpertField& f, ExtractionOptions& o) {
   void* p = f.at(o);
   if (f.type == 'd') return *static_cast<double*>(p);
   if (f.type == 'i') return *static_cast<int*>(p);
@@ -117,13 +117,13 @@ double read(const Field& f, ExtractionOptions& o) {
 std::vector<ExpertOption> expertOptions() {
   std::vector<ExpertOption> out;
   ExtractionOptions defaults;
-  for (const Field& f : fields())
-    out.push_back({f.key, f.type == 'd' ? "double" : f.type == 'i' ? "int" : "bool", read(f, defaults)});
+  for (const ExpertField& f : expertFields())
+    out.push_back({f.key, f.type == 'd' ? "double" : f.type == 'i' ? "int" : "bool", readField(f, defaults)});
   return out;
 }
 
 void setExpertOption(ExtractionOptions& options, const std::string& key, double value) {
-  const Field& f = field(key);
+  const ExpertField& f = expertField(key);
   if (!std::isfinite(value)) throw InputError("expert option " + key + " must be finite");
   void* p = f.at(options);
   if (f.type == 'd') {
@@ -139,7 +139,7 @@ void setExpertOption(ExtractionOptions& options, const std::string& key, double 
 }
 
 double expertOption(const ExtractionOptions& options, const std::string& key) {
-  return read(field(key), const_cast<ExtractionOptions&>(options));  // only read
+  return readField(expertField(key), const_cast<ExtractionOptions&>(options));  // only read
 }
 
 }  // namespace myoskin
