@@ -122,13 +122,13 @@ TEST(Stages, ExpertOptionsByName) {
   ExtractionOptions o;
   EXPECT_EQ(expertOption(o, "filters.minEvidence"), o.filters.minEvidence);
   setExpertOption(o, "filters.minEvidence", 7.5);
-  setExpertOption(o, "filters.spindleSections", 5);
+  setExpertOption(o, "link.maxGap", 5);
   setExpertOption(o, "ends.spanDistal", 0);
   EXPECT_EQ(o.filters.minEvidence, 7.5);
-  EXPECT_EQ(o.filters.spindleSections, 5);
+  EXPECT_EQ(o.link.maxGap, 5);
   EXPECT_FALSE(o.ends.spanDistal);
   EXPECT_THROW(setExpertOption(o, "filters.nothing", 1), InputError);
-  EXPECT_THROW(setExpertOption(o, "filters.spindleSections", 2.5), InputError);
+  EXPECT_THROW(setExpertOption(o, "link.maxGap", 2.5), InputError);
   EXPECT_THROW(setExpertOption(o, "ends.spanDistal", 2), InputError);
   EXPECT_THROW(setExpertOption(o, "filters.minEvidence", std::nan("")), InputError);
 }

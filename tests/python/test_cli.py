@@ -68,7 +68,7 @@ def test_extract_expert_options(tmp_path):
                          (["--expert", "filters.nothing=1"], "unknown expert extraction option 'filters.nothing'"),
                          (["--expert", "filters.minEvidence"], "KEY=VALUE"),
                          (["--expert", "filters.minEvidence=-1"], "filters.minEvidence must be >= 0"),
-                         (["--expert", "filters.spindleSections=2.5"], "must be an integer"),
+                         (["--expert", "link.maxGap=2.5"], "must be an integer"),
                          (["--spacing", "-1"], "--spacing"), (["--joint-wrap", "-1"], "--joint-wrap"),
                          (["--max-per-region", "-1"], "--max-per-region"), (["--no-such-flag"], "--no-such-flag")):
         r = run_cli("extract", arm, "-o", str(tmp_path / "x.json"), *bad)

@@ -372,7 +372,7 @@ def test_old_expert_keywords_raise_type_error_bad_values_value_error(core, arm):
     with pytest.raises(ValueError, match="unknown expert extraction option"):
         core.extract_muscles(character, options={"filters.nothing": 1.0})
     with pytest.raises(ValueError, match="integer"):
-        core.extract_muscles(character, options={"filters.spindleSections": 2.5})
+        core.extract_muscles(character, options={"link.maxGap": 2.5})
     with pytest.raises(ValueError, match="number or a bool"):
         core.extract_muscles(character, options={"filters.minEvidence": "high"})
     with pytest.raises(TypeError, match="dict"):
