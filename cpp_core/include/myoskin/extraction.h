@@ -30,7 +30,7 @@ struct LinkOptions {
   double maxAngle = 0.45;       // radians (~26 degrees)
   int maxGap = 2;               // sections that may be missing between two linked bumps
   int minSections = 3;          // a muscle needs at least this many significant sections (and enough evidence:
-                                // ExtractionOptions::minEvidence)
+                                // ChainFilterOptions::minEvidence)
   bool branches = true;         // join merging/splitting chains with a transition section
   double mergeFactor = 0.5;     // fragments of one belly (chains of a family whose centres come within this
                                 // times their larger mean semi-axis a at the same or a neighbouring plane)
