@@ -47,6 +47,7 @@ struct Args {
   std::vector<std::string> positional;
   std::map<std::string, std::string> options;  // --name value
   std::vector<std::string> flags;              // --name without value
+  std::vector<std::string> experts;            // every --expert KEY=VALUE, in order
 };
 
 // Options listed in `withValue` take the next argument; anything else starting with -- is a flag.
@@ -60,6 +61,7 @@ Args parse(int argc, char** argv, int first, const std::vector<std::string>& wit
       for (const std::string& w : withValue) takes |= (w == a);
       if (takes) {
         if (i + 1 >= argc) throw InputError(a + " needs a value");
+        if (a == "--expert") args.experts.push_back(argv[i + 1]);
         args.options[a] = argv[++i];
       } else {
         args.flags.push_back(a);
@@ -78,10 +80,14 @@ void usage(std::ostream& out) {
          "          neck, shoulder, pelvis, ignore); edit the written file and pass it to extract --roles\n"
          "  generate arm -o DIR [--seed N] [--muscle-scale S]  write the procedural test arm\n"
          "                                                      (arm.obj, arm.skeleton.json, arm.truth.json)\n"
-         "  extract CHARACTER -o muscles.json [--spacing M] [--min-confidence C] [--min-sections N]\n"
-         "          [--max-per-region N] [--min-evidence E] [--spindle-ends F] [--twin-reach R] [--no-surfaces]\n"
-         "          [--mesh NAME] [--roles ROLES.json]\n"
-         "          extract muscles from the skin (the whole character: every mesh its skin deforms, or --mesh)\n"
+         "  extract CHARACTER -o muscles.json [--spacing R] [--min-confidence C] [--min-sections N]\n"
+         "          [--max-per-region N] [--joint-wrap W] [--no-surfaces] [--mesh NAME] [--roles ROLES.json]\n"
+         "          [--options EXPERT.json] [--expert KEY=VALUE ...]\n"
+         "          extract muscles from the skin (the whole character: every mesh its skin deforms, or --mesh);\n"
+         "          --spacing in limb radii (0 = automatic), --min-confidence in [0, 1], --min-sections significant\n"
+         "          sections a muscle needs, --max-per-region (0 = all), --joint-wrap in the muscle's semi-axes\n"
+         "          (0 = straight lines); expert tuning: --expert filters.minEvidence=7 (repeatable; --expert list\n"
+         "          prints every key and default), --options a JSON object {KEY: VALUE} applied first\n"
          "  deform CHARACTER [--muscles M.json] --pose P.json -o out.obj|out.pc2 [--dominance D] [--threads N]\n"
          "          [--preserve-volume | --volume-blend] [--dq-scale pivot|blended] [--method eq3|anchored]\n"
          "          [--relax-iterations N]\n"
@@ -229,24 +235,66 @@ double numberOption(const Args& args, const std::string& name, double fallback) 
   }
 }
 
+// Expert extraction options from a JSON file: an object {KEY: number or bool} (expertOptions' keys).
+void readExpertFile(const std::string& path, ExtractionOptions& options) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open the options file");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const std::exception& e) {
+    throw InputError(path + ": not valid JSON (" + std::string(e.what()) + ")");
+  }
+  if (!j.is_object()) throw InputError(path + ": an options file is an object {\"key\": value}");
+  for (const auto& [key, value] : j.items()) {
+    if (!value.is_number() && !value.is_boolean())
+      throw InputError(path + ": option '" + key + "' needs a number or true/false");
+    setExpertOption(options, key, value.is_boolean() ? (value.get<bool>() ? 1.0 : 0.0) : value.get<double>());
+  }
+}
+
+// One --expert KEY=VALUE (VALUE a number, true or false).
+void applyExpert(const std::string& text, ExtractionOptions& options) {
+  const size_t eq = text.find('=');
+  if (eq == std::string::npos || eq == 0) throw InputError("--expert needs KEY=VALUE, got '" + text + "'");
+  const std::string key = text.substr(0, eq), value = text.substr(eq + 1);
+  double v = 0.0;
+  if (value == "true") v = 1.0;
+  else if (value == "false") v = 0.0;
+  else {
+    try {
+      size_t used = 0;
+      v = std::stod(value, &used);
+      if (used != value.size()) throw std::invalid_argument(value);
+    } catch (const std::exception&) {
+      throw InputError("--expert " + key + " needs a number or true/false, got '" + value + "'");
+    }
+  }
+  setExpertOption(options, key, v);
+}
+
 int cmdExtract(const Args& args) {
+  if (args.experts.size() == 1 && args.experts[0] == "list") {  // every expert key with its type and default
+    for (const ExpertOption& e : expertOptions()) std::printf("%s = %.10g (%s)\n", e.key.c_str(), e.defaultValue, e.type.c_str());
+    return 0;
+  }
   if (args.positional.size() != 1) throw InputError("extract needs exactly one CHARACTER file");
   if (!args.options.count("--output")) throw InputError("extract needs -o muscles.json");
   ExtractionOptions options;
   if (args.options.count("--roles")) options.roleOverrides = readRoles(args.options.at("--roles"));
-  options.planes.spacing = numberOption(args, "--spacing", 0.0);
-  if (options.planes.spacing < 0) throw InputError("--spacing must be >= 0 (0 = automatic)");
-  options.minConfidence = numberOption(args, "--min-confidence", options.minConfidence);
-  if (options.minConfidence < 0 || options.minConfidence > 1) throw InputError("--min-confidence must be in [0, 1]");
+  // Expert tuning first (the file, then each --expert), the user-facing flags after (their own keys).
+  if (args.options.count("--options")) readExpertFile(args.options.at("--options"), options);
+  for (const std::string& e : args.experts) applyExpert(e, options);
+  options.scale.spacing = numberOption(args, "--spacing", 0.0);  // limb radii
+  if (options.scale.spacing < 0) throw InputError("--spacing must be >= 0 limb radii (0 = automatic)");
+  options.filters.minConfidence = numberOption(args, "--min-confidence", options.filters.minConfidence);
+  if (options.filters.minConfidence < 0 || options.filters.minConfidence > 1) throw InputError("--min-confidence must be in [0, 1]");
   options.link.minSections = static_cast<int>(numberOption(args, "--min-sections", options.link.minSections));
   if (options.link.minSections < 1) throw InputError("--min-sections must be >= 1");
   options.maxPerRegion = static_cast<int>(numberOption(args, "--max-per-region", 0));
-  options.minEvidence = numberOption(args, "--min-evidence", options.minEvidence);
-  if (!(options.minEvidence >= 0)) throw InputError("--min-evidence must be >= 0");
-  options.spindleEnds = numberOption(args, "--spindle-ends", options.spindleEnds);
-  if (!(options.spindleEnds >= 0 && options.spindleEnds <= 1)) throw InputError("--spindle-ends must be in [0, 1]");
-  options.twinReach = numberOption(args, "--twin-reach", options.twinReach);
-  if (!(options.twinReach >= 0 && std::isfinite(options.twinReach))) throw InputError("--twin-reach must be >= 0");
+  if (options.maxPerRegion < 0) throw InputError("--max-per-region must be >= 0 (0 = all)");
+  options.ends.jointWrapFraction = numberOption(args, "--joint-wrap", options.ends.jointWrapFraction);
+  if (!(options.ends.jointWrapFraction >= 0)) throw InputError("--joint-wrap must be >= 0 (0 = straight lines)");
   options.buildSurfaces = std::find(args.flags.begin(), args.flags.end(), "--no-surfaces") == args.flags.end();
   const Character c = loadArgCharacter(args, "extract");
   const ExtractionResult r = extractMuscles(c, options);
@@ -530,10 +578,21 @@ int main(int argc, char** argv) {
     if (command == "info") return cmdInfo(parse(argc, argv, 2, {"--skeleton", "--mesh"}));
     if (command == "roles") return cmdRoles(parse(argc, argv, 2, {"--skeleton", "--mesh", "--roles", "--output"}));
     if (command == "generate") return cmdGenerate(parse(argc, argv, 2, {"--output", "--seed", "--muscle-scale"}));
-    if (command == "extract")
-      return cmdExtract(parse(argc, argv, 2,
-                              {"--output", "--skeleton", "--spacing", "--min-confidence", "--min-sections", "--max-per-region",
-                               "--min-evidence", "--spindle-ends", "--twin-reach", "--mesh", "--roles"}));
+    if (command == "extract") {
+      // The expert flags extract took before its options were cut to five: named with their --expert key.
+      const std::map<std::string, std::string> removed = {
+          {"--min-evidence", "filters.minEvidence"}, {"--spindle-ends", "filters.spindleEnds"},
+          {"--twin-reach", "filters.twinReach"}};
+      for (int i = 2; i < argc; ++i)
+        if (removed.count(argv[i]))
+          throw InputError(std::string(argv[i]) + " is an expert option now: --expert " + removed.at(argv[i]) + "=VALUE");
+      const Args args = parse(argc, argv, 2, {"--output", "--skeleton", "--spacing", "--min-confidence", "--min-sections",
+                                              "--max-per-region", "--joint-wrap", "--mesh", "--roles", "--options",
+                                              "--expert"});
+      for (const std::string& f : args.flags)
+        if (f != "--no-surfaces") throw InputError("extract: unknown option '" + f + "'");
+      return cmdExtract(args);
+    }
     if (command == "deform")
       return cmdDeform(
           parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh", "--dq-scale",

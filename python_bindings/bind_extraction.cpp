@@ -95,96 +95,106 @@ std::vector<TrueMuscle> truthFromDicts(const py::list& truth) {
   return out;
 }
 
+// The expert keywords extract_muscles took before its options were cut to five: their ExtractionOptions keys.
+const std::map<std::string, std::string> kRemovedKeywords = {
+    {"min_relative", "filters.minRelative"},
+    {"weak_fraction", "sectionBumps.weakFraction"},
+    {"min_relative_trunk", "filters.minRelativeTrunk"},
+    {"mirror_limbs", "profiles.mirrorLimbs"},
+    {"faint_relative", "sectionBumps.faintRelative"},
+    {"min_evidence", "filters.minEvidence"},
+    {"continuous_fraction", "filters.continuousFraction"},
+    {"continuous_evidence", "filters.continuousEvidence"},
+    {"reference_limb_radius", "scale.referenceLimbRadius"},
+    {"spindle_ends", "filters.spindleEnds"},
+    {"twin_reach", "filters.twinReach"},
+    {"span_distal", "ends.spanDistal"},
+};
+
 }  // namespace
 
 void bindExtraction(py::module_& m) {
   m.def(
       "extract_muscles",
-      [](const Character& character, double spacing, const py::object& vertexMask, double minConfidence,
-         int minSections, int maxPerRegion, const py::object& forcedRegions, bool buildSurfaces,
-         double minRelative, double weakFraction, double minRelativeTrunk, bool mirrorLimbs, double faintRelative,
-         double minEvidence, double jointWrap, double continuousFraction, double continuousEvidence,
-         const std::map<std::string, std::string>& boneRoles, double referenceLimbRadius, double spindleEnds,
-         double twinReach, bool spanDistal) {
+      [](const Character& character, double spacing, double minConfidence, int minSections, int maxPerRegion,
+         double jointWrap, const py::object& vertexMask, const py::object& forcedRegions,
+         const std::map<std::string, std::string>& boneRoles, bool buildSurfaces, const py::object& expert,
+         const py::kwargs& removed) {
+        for (const auto& [name, value] : removed) {  // the old expert keywords: a TypeError naming the new key
+          const std::string key = name.cast<std::string>();
+          const auto it = kRemovedKeywords.find(key);
+          if (it == kRemovedKeywords.end())
+            throw py::type_error("extract_muscles() got an unexpected keyword argument '" + key + "'");
+          throw py::type_error("extract_muscles(): '" + key + "' is an expert option now: pass options={'" +
+                               it->second + "': ...} (extraction_options() lists them)");
+        }
         ExtractionOptions o;
-        o.ends.spanDistal = spanDistal;
-        if (!std::isfinite(referenceLimbRadius)) throw InputError("reference_limb_radius must be finite");
-        o.referenceLimbRadius = referenceLimbRadius;
-        for (const auto& [bone, role] : boneRoles) o.roleOverrides[bone] = boneRoleFromName(role);
-        if (spacing < 0) throw InputError("spacing must be >= 0 (0 = automatic)");
-        if (minConfidence < 0 || minConfidence > 1) throw InputError("min_confidence must be in [0, 1]");
-        if (minSections < 1) throw InputError("min_sections must be >= 1");
-        if (!(minRelative >= 0)) throw InputError("min_relative must be >= 0");
-        if (!(weakFraction > 0 && weakFraction <= 1)) throw InputError("weak_fraction must be in (0, 1]");
-        if (!(minRelativeTrunk >= 0)) throw InputError("min_relative_trunk must be >= 0");
-        if (!(jointWrap >= 0)) throw InputError("joint_wrap must be >= 0");
-        o.ends.jointWrapFraction = jointWrap;
-        if (!(faintRelative >= 0 && faintRelative <= 1)) throw InputError("faint_relative must be in [0, 1]");
-        o.faintRelative = faintRelative;
-        if (!(minEvidence >= 0)) throw InputError("min_evidence must be >= 0");
-        o.minEvidence = minEvidence;
-        if (!(continuousFraction > 0 && continuousFraction <= 1)) throw InputError("continuous_fraction must be in (0, 1]");
-        if (!(continuousEvidence >= 0)) throw InputError("continuous_evidence must be >= 0");
-        o.continuousFraction = continuousFraction;
-        o.continuousEvidence = continuousEvidence;
-        if (!(spindleEnds >= 0 && spindleEnds <= 1)) throw InputError("spindle_ends must be in [0, 1]");
-        o.spindleEnds = spindleEnds;
-        o.twinReach = twinReach;  // validated by the core (InputError -> ValueError)
-        o.minRelative = minRelative;
-        o.minRelativeTrunk = minRelativeTrunk;
-        o.profiles.mirrorLimbs = mirrorLimbs;
-        o.weakFraction = weakFraction;
-        o.planes.spacing = spacing;
-        o.minConfidence = minConfidence;
+        if (!std::isfinite(spacing) || spacing < 0) throw InputError("spacing must be >= 0 limb radii (0 = automatic)");
+        o.scale.spacing = spacing;
+        o.filters.minConfidence = minConfidence;
         o.link.minSections = minSections;
-        o.maxPerRegion = std::max(0, maxPerRegion);
+        o.maxPerRegion = maxPerRegion;
+        o.ends.jointWrapFraction = jointWrap;
+        for (const auto& [bone, role] : boneRoles) o.roleOverrides[bone] = boneRoleFromName(role);
         o.buildSurfaces = buildSurfaces;
+        if (!expert.is_none()) {
+          if (!py::isinstance<py::dict>(expert))
+            throw py::type_error("extract_muscles(): options must be a dict {key: value} of expert options");
+          for (const auto& [k, v] : py::reinterpret_borrow<py::dict>(expert)) {
+            const std::string key = py::str(k).cast<std::string>();
+            if (!py::isinstance<py::bool_>(v) && !py::isinstance<py::int_>(v) && !py::isinstance<py::float_>(v))
+              throw InputError("expert option " + key + " needs a number or a bool");
+            setExpertOption(o, key, v.cast<double>());
+          }
+        }
         if (!vertexMask.is_none()) o.vertexMask = toMask(vertexMask, "vertex_mask");
         if (!forcedRegions.is_none())
           for (const py::handle& h : forcedRegions) o.forcedRegions.push_back(toMask(h, "forced_regions item"));
         ExtractionResult r;
         {
           py::gil_scoped_release release;
-          r = extractMuscles(character, o);
+          r = extractMuscles(character, o);  // validates every option (InputError -> ValueError)
         }
         return py::make_tuple(py::cast(r.muscles), reportToDict(r.report));
       },
-      py::arg("character"), py::arg("spacing") = 0.0, py::arg("vertex_mask") = py::none(),
-      py::arg("min_confidence") = ExtractionOptions{}.minConfidence, py::arg("min_sections") = LinkOptions{}.minSections, py::arg("max_per_region") = 0,
-      py::arg("forced_regions") = py::none(), py::arg("build_surfaces") = true,
-      py::arg("min_relative") = ExtractionOptions{}.minRelative,
-      py::arg("weak_fraction") = ExtractionOptions{}.weakFraction,
-      py::arg("min_relative_trunk") = ExtractionOptions{}.minRelativeTrunk,
-      py::arg("mirror_limbs") = ProfileOptions{}.mirrorLimbs,
-      py::arg("faint_relative") = ExtractionOptions{}.faintRelative,
-      py::arg("min_evidence") = ExtractionOptions{}.minEvidence,
-      py::arg("joint_wrap") = EndOptions{}.jointWrapFraction,
-      py::arg("continuous_fraction") = ExtractionOptions{}.continuousFraction,
-      py::arg("continuous_evidence") = ExtractionOptions{}.continuousEvidence,
-      py::arg("bone_roles") = std::map<std::string, std::string>{},
-      py::arg("reference_limb_radius") = 0.0,
-      py::arg("spindle_ends") = ExtractionOptions{}.spindleEnds, py::arg("twin_reach") = ExtractionOptions{}.twinReach,
-      py::arg("span_distal") = EndOptions{}.spanDistal,
-      "Extract muscles from a character's skin (Yang & Zhang 2006). spacing: metres between cutting planes "
-      "(0 = automatic); vertex_mask: #V booleans, extract only there; forced_regions: list of #V masks, one "
-      "muscle forced per region; min_confidence: drop weaker muscles; max_per_region: keep the most confident "
-      "per region (0 = all); min_relative: drop muscles whose bumps stand out less than this share of their "
-      "sections' mean radius on average; min_relative_trunk: the same for the abdomen and neck families (instead of "
-      "min_relative, against their Fourier base); mirror_limbs: average mirrored left/right limb profiles (exactly mirrored limbs); weak_fraction: hysteresis, bumps down to this share of the significance threshold "
-      "extend muscles (1 = off); faint_relative: fainter bumps (down to half the threshold) extend a muscle only where "
-      "they reach this share of its peak significance (0 = off); min_evidence: a muscle's summed bump significance, in "
-      "sections of the default spacing, must reach this (0 = off); continuous_fraction: a limb muscle that stands out in every plane "
-      "between its ends with at least continuous_evidence needs only this share of min_relative (1 = off); joint_wrap: a muscle crossing a joint wraps round it "
-      "on a sphere of this times its mean semi-axis b (0 = straight lines); bone_roles: {bone name: role} overriding the "
-      "detected roles (ignore, limb, shoulder, neck, spine, pelvis); reference_limb_radius: the limb radius every default length "
-      "holds for (0 = the built-in reference, < 0 = the character's own units); spindle_ends: a limb chain below the "
-      "length and height floors is kept when it is a closed spindle whose ends stay below this share of its peak "
-      "(0 = off); twin_reach: such a limb chain is also kept when its mirror twin on the other limb passed the floors (its "
-      "centres within this times the chains' mean semi-axis a of the twin's, mirrored; 0 = off); span_distal: a leg muscle's distal end on the shin is carried over the ankle onto the "
-      "foot on the belly's side (the calf onto the heel; False = off). Returns (muscles, report) where report has per-stage "
+      py::arg("character"), py::arg("spacing") = 0.0, py::arg("min_confidence") = ExtractionOptions{}.filters.minConfidence,
+      py::arg("min_sections") = LinkOptions{}.minSections, py::arg("max_per_region") = 0,
+      py::arg("joint_wrap") = EndOptions{}.jointWrapFraction, py::kw_only(), py::arg("vertex_mask") = py::none(),
+      py::arg("forced_regions") = py::none(), py::arg("bone_roles") = std::map<std::string, std::string>{},
+      py::arg("build_surfaces") = true, py::arg("options") = py::none(),
+      "Extract muscles from a character's skin (Yang & Zhang 2006). The five user-facing options, each relative to "
+      "the body:\n"
+      "  spacing: distance between cutting planes in limb radii (the body's median limb radius, report['limb_radius']; "
+      "0 = automatic, 1/80 of the body's largest extent);\n"
+      "  min_confidence: drop muscles below this confidence, in [0, 1] (forced ones are kept);\n"
+      "  min_sections: significant sections a muscle needs (>= 1);\n"
+      "  max_per_region: keep the most confident per region (0 = all);\n"
+      "  joint_wrap: a muscle crossing a joint wraps round it on a sphere of this times its mean semi-axis b "
+      "(0 = straight lines).\n"
+      "Data (keyword only): vertex_mask (#V booleans: extract only there), forced_regions (list of #V masks, one "
+      "muscle forced per region), bone_roles ({bone name: role} overriding the detected roles: ignore, limb, "
+      "shoulder, neck, spine, pelvis), build_surfaces (loft a surface per muscle).\n"
+      "options: expert tuning, not user-facing: a dict {key: value} of ExtractionOptions field paths "
+      "(e.g. {'filters.minEvidence': 7.0, 'ends.spanDistal': False}); extraction_options() lists every key with its "
+      "default. The old expert keywords (min_relative, weak_fraction, min_evidence, twin_reach, ...) raise a "
+      "TypeError naming their key. Bad values raise ValueError. Returns (muscles, report) where report has per-stage "
       "counts, skipped sections with reasons, timings per stage (seconds), limb_radius and scale (the body scale), "
       "excluded (skin components left out: small or rigidly bound), analysed (any section looked at) and diagnosis "
       "(why nothing was found, else empty).");
+
+  m.def(
+      "extraction_options",
+      []() {
+        py::dict d;
+        for (const ExpertOption& e : expertOptions()) {
+          if (e.type == "bool") d[py::str(e.key)] = e.defaultValue != 0.0;
+          else if (e.type == "int") d[py::str(e.key)] = static_cast<int>(e.defaultValue);
+          else d[py::str(e.key)] = e.defaultValue;
+        }
+        return d;
+      },
+      "The expert extraction options, {key: default} (ExtractionOptions' field paths, extraction.h documents each): "
+      "tuning for extract_muscles(options={...}), not user-facing.");
 
   m.def(
       "bone_roles",

@@ -29,11 +29,37 @@ when sections were analysed but no muscle stands out, it goes on and logs "found
 """
 import argparse
 import importlib
+import json
 import os
 import sys
 import time
 
 import bpy
+
+
+def expert_options(args):
+    """--options FILE.json, then each --expert KEY=VALUE (a number, true or false): {key: value}."""
+    options = {}
+    if args.options:
+        try:
+            with open(args.options) as f:
+                options = json.load(f)
+        except (OSError, ValueError) as e:
+            fail(f"--options {args.options}: {e}")
+        if not isinstance(options, dict):
+            fail(f"--options {args.options}: an options file is an object {{\"key\": value}}")
+    for item in args.expert:
+        key, eq, text = item.partition("=")
+        if not eq or not key:
+            fail(f"--expert needs KEY=VALUE, got '{item}'")
+        if text in ("true", "false"):
+            options[key] = text == "true"
+        else:
+            try:
+                options[key] = float(text)
+            except ValueError:
+                fail(f"--expert {key} needs a number or true/false, got '{text}'")
+    return options
 
 
 def parse_args(argv):
@@ -44,8 +70,19 @@ def parse_args(argv):
     p.add_argument("--object", help="a skinned mesh to use alone, or an armature (default: the scene's one armature "
                                     "with every mesh it deforms: the whole character)")
     p.add_argument("--spacing", type=float, default=-1.0,
-                   help="section spacing in metres (0 = automatic, default: the add-on's preferences)")
-    p.add_argument("--min-confidence", type=float, default=-1.0, help="default: the add-on's preferences")
+                   help="section spacing in limb radii (the body's median limb radius; 0 = automatic, default: the "
+                        "add-on's preferences)")
+    p.add_argument("--min-confidence", type=float, default=-1.0, help="in [0, 1]; default: the add-on's preferences")
+    p.add_argument("--min-sections", type=int, default=-1, help="significant sections a muscle needs (default: the "
+                                                                 "add-on's preferences)")
+    p.add_argument("--max-per-region", type=int, default=0, help="keep the most confident per region (0 = all)")
+    p.add_argument("--joint-wrap", type=float, default=0.3,
+                   help="a muscle crossing a joint wraps round it on a sphere of this times its thickness (0 = off)")
+    p.add_argument("--options", metavar="EXPERT.json",
+                   help="expert extraction tuning: a JSON object {key: value} (the CLI's --options; keys: Python "
+                        "_core.extraction_options())")
+    p.add_argument("--expert", action="append", default=[], metavar="KEY=VALUE",
+                   help="one expert extraction option, after --options (repeatable; the CLI's --expert)")
     p.add_argument("--roles", metavar="ROLES.json",
                    help="bone role overrides for extract, {\"bone\": \"role\"} (roles: ignore, limb, shoulder, neck, "
                         "spine, pelvis; the CLI's format); they replace the overrides stored in the file")
@@ -295,7 +332,11 @@ def main(argv):
     if args.command == "extract":
         if state.bound:
             run_op(bpy.ops.myoskin.unbind)
-        run_op(bpy.ops.myoskin.extract_muscles, spacing=args.spacing, min_confidence=args.min_confidence)
+        if args.joint_wrap < 0 or args.max_per_region < 0:  # the operator's properties would clamp them
+            fail("--joint-wrap and --max-per-region must be >= 0")
+        run_op(bpy.ops.myoskin.extract_muscles, spacing=args.spacing, min_confidence=args.min_confidence,
+               min_sections=args.min_sections, max_per_region=args.max_per_region, joint_wrap=args.joint_wrap,
+               expert=json.dumps(expert_options(args)))
         skins = [s.object.name for s in state.skins if s.object is not None]
         log(f"extracted {len(state.muscles)} muscles from {arm.name if target == arm else target.name} "
             f"({len(skins)} mesh(es): {', '.join(skins)})")

@@ -13,9 +13,10 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
     bl_idname = ADDON_PACKAGE
 
     section_spacing: FloatProperty(
-        name="Section Spacing", description="Distance between cutting planes during extraction "
-                                            "(0 = automatic: 1/80 of the character's largest extent)",
-        default=0.0, min=0.0, soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
+        name="Section Spacing", description="Distance between cutting planes during extraction, in limb radii "
+                                            "(the body's median limb radius; 0 = automatic: 1/80 of the "
+                                            "character's largest extent)",
+        default=0.0, min=0.0, soft_max=4.0)
     min_confidence: FloatProperty(
         name="Minimum Confidence", description="Extraction drops muscles less significant than this",
         default=0.5, min=0.0, max=1.0)

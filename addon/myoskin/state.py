@@ -366,14 +366,19 @@ LIMITS = (
 
 class MyoskinSceneSettings(bpy.types.PropertyGroup):
     """The sidebar's tool settings (what the buttons pass to the operators)."""
-    spacing: FloatProperty(name="Section Spacing", description="Distance between cutting planes "
-                           "(0 = automatic: 1/80 of the character's extent)", default=0.0, min=0.0,
-                           soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
+    spacing: FloatProperty(name="Section Spacing", description="Distance between cutting planes in limb radii "
+                           "(the body's median limb radius; 0 = automatic: 1/80 of the character's extent)",
+                           default=0.0, min=0.0, soft_max=4.0)
     min_confidence: FloatProperty(name="Min Confidence", description="Drop muscles less significant than this",
                                   default=0.5, min=0.0, max=1.0)
     joint_wrap: FloatProperty(name="Joint Wrap", description="A muscle crossing a joint wraps round it on a "
                               "sphere of this times its thickness, so it bends with the skeleton (0 = straight)",
                               default=0.3, min=0.0, soft_max=1.0)
+    max_per_region: IntProperty(name="Max per Region", description="Keep at most this many muscles (the most "
+                                "confident) per region (0 = all)", default=0, min=0, soft_max=10)
+    expert: StringProperty(name="Expert", description="Expert tuning, not for everyday use: a JSON object "
+                           "{key: value} of the core's extraction options (e.g. {\"filters.minEvidence\": 7})",
+                           default="")
     limit: EnumProperty(name="Limit To", items=LIMITS, default='ALL')
     vertex_group: StringProperty(name="Vertex Group", description="Region for Limit To / Add Muscle")
     region_source: EnumProperty(name="Region", items=(

@@ -281,6 +281,27 @@ def test_batch_roles():
     assert code == 1 and "has no bone 'humerus'" in log and "Traceback" not in log, log
 
 
+def test_batch_extraction_options():
+    """The user-facing flags and the expert tuning (--options FILE.json, then --expert KEY=VALUE) reach extraction;
+    a bad key or value: exit 1, clear message."""
+    import json
+    src = os.path.join(TMP, "options_arm.blend")
+    arm_blend(src)
+    code, log = batch("extract", "--max-per-region", "1", "--expert", "filters.minEvidence=1000", "--expert",
+                      "filters.spindleEnds=0", blend=src)
+    assert code == 0 and "found no muscles" in log, log
+    options = os.path.join(TMP, "expert.json")
+    with open(options, "w") as f:
+        json.dump({"filters.minEvidence": 1000, "filters.spindleEnds": 0}, f)
+    code, log = batch("extract", "--options", options, "--expert", "filters.minEvidence=6.6", blend=src)
+    assert code == 0 and "found no muscles" not in log and "extracted " in log, log
+    for bad, message in ((["--expert", "nope=1"], "unknown expert extraction option 'nope'"),
+                         (["--expert", "filters.minEvidence"], "--expert needs KEY=VALUE"),
+                         (["--joint-wrap", "-1"], "--joint-wrap and --max-per-region must be >= 0")):
+        code, log = batch("extract", *bad, blend=src)
+        assert code == 1 and message in log and "Traceback" not in log, (bad, log)
+
+
 def test_batch_errors():
     code, log = batch("--input", os.path.join(TMP, "missing.glb"), "extract")
     assert code == 1 and "myoskin batch: error: no such file" in log, log

@@ -126,7 +126,21 @@ def test_extract_options_and_limits():
     assert len(state.muscles) <= everywhere
     # joint wrap 0: every muscle's action line is straight, no wrap display
     assert bpy.ops.myoskin.extract_muscles(joint_wrap=0.0) == {'FINISHED'}
+    assert len(state.muscles) > 0
     assert all(item.wrap_type == 'none' and item.wrap_locator is None for item in state.muscles)
+    # at most one per region
+    assert bpy.ops.myoskin.extract_muscles(max_per_region=1) == {'FINISHED'}
+    regions = [m.region for m in state.muscles]
+    assert 0 < len(regions) < everywhere and len(set(regions)) == len(regions), regions
+    # expert tuning reaches the core (JSON {key: value}); bad JSON or keys: clear errors
+    assert bpy.ops.myoskin.extract_muscles(expert='{"filters.minEvidence": 0}') == {'FINISHED'}
+    assert len(state.muscles) >= everywhere
+    assert bpy.ops.myoskin.extract_muscles(expert='{"filters.minEvidence": 1000, "filters.spindleEnds": 0}') \
+        == {'FINISHED'}
+    assert len(state.muscles) < everywhere
+    assert "not valid JSON" in operator_error(bpy.ops.myoskin.extract_muscles, expert="{min")
+    assert "unknown expert extraction option 'nope'" in operator_error(bpy.ops.myoskin.extract_muscles,
+                                                                      expert='{"nope": 1}')
     # empty selection / missing group: clear errors
     skin.data.vertices.foreach_set("select", np.zeros(len(skin.data.vertices), dtype=bool))
     assert "No vertices selected" in operator_error(bpy.ops.myoskin.extract_muscles, limit='SELECTED')

@@ -313,7 +313,7 @@ TEST(AnyCharacter, LowPolyFacetingIsNotRelief) {
   MYOSKIN_REQUIRE_SHARED(lowPoly);
   MYOSKIN_REQUIRE_SHARED(muscular);
   ExtractionOptions off;
-  off.minBumpCrossings = 0;
+  off.sectionBumps.minBumpCrossings = 0;
   const Character smooth = loadCharacter(lowPoly), fine = loadCharacter(muscular);
   const size_t facetsToo = extractMuscles(smooth, off).muscles.size(), resolved = extractMuscles(smooth).muscles.size();
   const size_t fineOff = extractMuscles(fine, off).muscles.size(), fineOn = extractMuscles(fine).muscles.size();

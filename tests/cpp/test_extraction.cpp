@@ -523,18 +523,21 @@ TEST(Measured, DeterministicAndUserControl) {
   EXPECT_GT(limited.report.droppedRegionLimit, 0);
   for (const Muscle& m : limited.muscles) EXPECT_LE(++perRegion[m.region], 1) << m.region;
   o = {};
-  o.minConfidence = 1.01;
+  o.filters.minConfidence = 1.0;
   EXPECT_EQ(extractMuscles(arm.character, o).muscles.size(), 0u);
+  o.filters.minConfidence = 1.01;  // out of range
+  EXPECT_THROW(extractMuscles(arm.character, o), InputError);
+  o.filters.minConfidence = 0.5;
   // A peak-magnitude floor only removes muscles: no belly stands out half its section's radius, and every
   // significant bump stands out at least minProtrusion (3.5 mm), over 5 % of these sections' radius. (The spindle
   // rule keeps closed spindles below the floor: off here; 5 of the arm's 6 muscles are such spindles.)
   o = {};
-  o.spindleEnds = 0.0;
-  o.minRelative = 0.5;
+  o.filters.spindleEnds = 0.0;
+  o.filters.minRelative = 0.5;
   const ExtractionResult flat = extractMuscles(arm.character, o);
   EXPECT_EQ(flat.muscles.size(), 0u);
   EXPECT_GE(flat.report.droppedFlat, static_cast<int>(a.muscles.size()));  // chains, before family dominance
-  o.minRelative = 0.05;
+  o.filters.minRelative = 0.05;
   EXPECT_EQ(extractMuscles(arm.character, o).muscles.size(), a.muscles.size());
   // A vertex mask restricted to the forearm's side of the elbow finds no upper-arm muscle.
   const int forearm = arm.character.skeleton.find("forearm");
@@ -809,7 +812,7 @@ TEST(Measured, FaintHysteresisWithMirroredLimbs) {
   // against neutral 10 / 8 / 6 (8 at x 0.95 with spindle ends 0.75), every muscular one exactly mirrored. Not the default: the synthetic arm's biceps then reaches further towards the
   // elbow and the hybrid skinning's elbow region at 35 degrees grows more than LBS loses (test_hybrid_skinning).
   ExtractionOptions o;
-  o.weakFraction = 0.5;
+  o.sectionBumps.weakFraction = 0.5;
   o.profiles.mirrorLimbs = true;
   for (unsigned seed : {0u, 1u, 2u, 3u}) {
     SyntheticArmOptions so;

@@ -151,9 +151,9 @@ TEST(VariedCharacters, HeldOutRecallAndPrecision) {
         ++rescued;
         EXPECT_TRUE(c.spindle);
         EXPECT_GE(c.significance.size(), 4u);
-        EXPECT_GE(c.steepness, ExtractionOptions{}.spindleSteepness);
+        EXPECT_GE(c.steepness, ExtractionOptions{}.filters.spindleSteepness);
         const double top = *std::max_element(c.significance.begin(), c.significance.end());
-        EXPECT_LT(std::max(c.significance.front(), c.significance.back()), ExtractionOptions{}.spindleEnds * top);
+        EXPECT_LT(std::max(c.significance.front(), c.significance.back()), ExtractionOptions{}.filters.spindleEnds * top);
       }
       EXPECT_EQ(rescued, r.report.spindles) << bodyKindName(kind) << " seed " << seed;
       const auto twinRecords = std::count_if(r.report.chainRecords.begin(), r.report.chainRecords.end(),
@@ -277,9 +277,9 @@ TEST(VariedCharacters, RefusesBadOptions) {
   for (int bad = 0; bad < 3; ++bad) {
     ExtractionOptions e;
     e.buildSurfaces = false;
-    if (bad == 0) e.spindleEnds = 1.5;
-    if (bad == 1) e.spindleSections = -1;
-    if (bad == 2) e.spindleSteepness = std::nan("");
+    if (bad == 0) e.filters.spindleEnds = 1.5;
+    if (bad == 1) e.filters.spindleSections = -1;
+    if (bad == 2) e.filters.spindleSteepness = std::nan("");
     EXPECT_NE(test::inputErrorOf([&] { extractMuscles(arm.character, e); }).find("spindle"), std::string::npos) << bad;
   }
 }

@@ -40,23 +40,52 @@ def test_generate_arm_writes_a_loadable_character(tmp_path):
     assert "(closed manifold)" in info.stdout
 
 
-def test_extract_min_evidence(tmp_path):
+def test_extract_expert_options(tmp_path):
+    """Expert tuning reaches the core through --expert KEY=VALUE and --options FILE.json; the old expert flags
+    name their key; the five user-facing flags are checked."""
     r = run_cli("generate", "arm", "-o", str(tmp_path), "--seed", "2")
     assert r.returncode == 0, r.stderr
     arm = str(tmp_path / "arm.obj")
-    counts = []
-    for evidence in ("0", "6.6", "1000"):
-        out = tmp_path / ("m%s.json" % evidence)
-        spindles = ["--spindle-ends", "0"] if evidence == "1000" else []  # closed spindles are kept below the floor
-        r = run_cli("extract", arm, "-o", str(out), "--min-evidence", evidence, "--no-surfaces", *spindles)
+
+    def count(*extra):
+        out = tmp_path / "m.json"
+        r = run_cli("extract", arm, "-o", str(out), "--no-surfaces", *extra)
         assert r.returncode == 0, r.stderr
-        data = json.load(open(out))
-        counts.append(len(data["muscles"] if isinstance(data, dict) else data))
+        return len(json.load(open(out))["muscles"])
+
+    counts = [count("--expert", "filters.minEvidence=0"), count(),
+              count("--expert", "filters.minEvidence=1000", "--expert", "filters.spindleEnds=0")]
     assert counts[0] >= counts[1] == 6 and counts[2] == 0, counts  # seed 2: its six muscles at the default
-    r = run_cli("extract", arm, "-o", str(tmp_path / "x.json"), "--min-evidence", "-1")
-    assert r.returncode != 0 and "--min-evidence" in r.stderr
-    r = run_cli("extract", arm, "-o", str(tmp_path / "x.json"), "--spindle-ends", "2")
-    assert r.returncode != 0 and "--spindle-ends" in r.stderr
+    options = tmp_path / "expert.json"
+    json.dump({"filters.minEvidence": 1000, "filters.spindleEnds": 0}, open(options, "w"))
+    assert count("--options", str(options)) == 0
+    assert count("--options", str(options), "--expert", "filters.minEvidence=6.6") > 0  # --expert after the file
+    assert count("--max-per-region", "1") < 6 and count("--min-confidence", "1") == 0
+    r = run_cli("extract", "--expert", "list")
+    assert r.returncode == 0 and "filters.minEvidence = 6.6 (double)" in r.stdout, r.stdout
+    for bad, message in ((["--min-evidence", "1"], "--expert filters.minEvidence"),
+                         (["--spindle-ends", "2"], "--expert filters.spindleEnds"),
+                         (["--expert", "filters.nothing=1"], "unknown expert extraction option 'filters.nothing'"),
+                         (["--expert", "filters.minEvidence"], "KEY=VALUE"),
+                         (["--expert", "filters.minEvidence=-1"], "filters.minEvidence must be >= 0"),
+                         (["--expert", "link.maxGap=2.5"], "must be an integer"),
+                         (["--spacing", "-1"], "--spacing"), (["--joint-wrap", "-1"], "--joint-wrap"),
+                         (["--max-per-region", "-1"], "--max-per-region"), (["--no-such-flag"], "--no-such-flag")):
+        r = run_cli("extract", arm, "-o", str(tmp_path / "x.json"), *bad)
+        assert r.returncode != 0 and message in r.stderr, (bad, r.stderr)
+
+
+def test_extract_spacing_in_limb_radii(tmp_path):
+    """--spacing is in limb radii: the same number of planes at any scale of the character."""
+    r = run_cli("generate", "arm", "-o", str(tmp_path), "--seed", "1")
+    assert r.returncode == 0, r.stderr
+    arm = str(tmp_path / "arm.obj")
+    planes = []
+    for spacing in ("0", "0.5", "1"):
+        r = run_cli("extract", arm, "-o", str(tmp_path / "m.json"), "--no-surfaces", "--spacing", spacing)
+        assert r.returncode == 0, r.stderr
+        planes.append(int(r.stdout.split(" planes,")[0].split("(")[-1]))
+    assert planes[1] > planes[2] > 0 and 1.6 < planes[1] / planes[2] < 2.4, planes  # twice as many at half
 
 
 def _write_obj(path, vertices, faces):
@@ -177,6 +206,7 @@ def test_extract_says_why_and_fails_when_nothing_could_be_analysed(tmp_path):
     assert "nothing could be analysed" in r.stderr and "no limb chain recognised" in r.stderr, r.stderr
     assert not out.exists()
     # Sections analysed but nothing stands out: exit 0, and the reason printed.
-    r = run_cli("extract", arm, "-o", str(out), "--min-evidence", "1000", "--spindle-ends", "0", "--no-surfaces")
+    r = run_cli("extract", arm, "-o", str(out), "--expert", "filters.minEvidence=1000", "--expert",
+                "filters.spindleEnds=0", "--no-surfaces")
     assert r.returncode == 0, r.stderr
     assert "no muscles: " in r.stdout and "none kept" in r.stdout, r.stdout

@@ -52,14 +52,14 @@ def test_truth_relief_and_visible_length(core, arm):
     with pytest.raises(ValueError):
         core.measure_extraction(muscles, bad)
     with pytest.raises(ValueError):
-        core.extract_muscles(character, twin_reach=-1.0, build_surfaces=False)
+        core.extract_muscles(character, options={"filters.twinReach": -1.0}, build_surfaces=False)
 
 
 def test_mirror_twins_on_a_generated_biped(core):
-    """A limb chain the floors drop is kept when its mirror twin on the other limb passed them (twin_reach)."""
+    """A limb chain the floors drop is kept when its mirror twin on the other limb passed them (filters.twinReach)."""
     character, truth = core.make_synthetic_body(seed=2, kind="biped")
     with_twins, report = core.extract_muscles(character, build_surfaces=False)
-    without, report0 = core.extract_muscles(character, build_surfaces=False, twin_reach=0.0)
+    without, report0 = core.extract_muscles(character, build_surfaces=False, options={"filters.twinReach": 0.0})
     # Measured: 2 (seed 2: 18 true muscles matched, 16 without twins; seed 1's one twin, a tibialis flat on one leg
     # only, is found on both legs since mirrored limbs are resampled from mirrored points)
     assert report["twins"] >= 1 and report0["twins"] == 0
@@ -87,16 +87,16 @@ def test_user_control_options(core, arm):
     assert all(np.asarray(m.section_centers)[:, 0].min() > 0.45 for m in forearm)
     none, _ = core.extract_muscles(character, min_confidence=1.0)
     assert none == []
-    flat, report = core.extract_muscles(character, min_relative=0.5, spindle_ends=0.0)  # no spindle kept below it
+    flat, report = core.extract_muscles(character, options={"filters.minRelative": 0.5, "filters.spindleEnds": 0.0})  # no spindle kept below it
     assert flat == [] and report["dropped_flat"] >= len(everything)
     # The evidence floor only removes muscles (no muscle of this arm has 100 sections' worth of significance), but
-    # closed spindles are kept below it (spindle_ends): the arm's bellies are such spindles.
-    assert core.extract_muscles(character, min_evidence=100.0, spindle_ends=0.0)[0] == []
-    spindles, report = core.extract_muscles(character, min_evidence=100.0)
+    # closed spindles are kept below it (filters.spindleEnds): the arm's bellies are such spindles.
+    assert core.extract_muscles(character, options={"filters.minEvidence": 100.0, "filters.spindleEnds": 0.0})[0] == []
+    spindles, report = core.extract_muscles(character, options={"filters.minEvidence": 100.0})
     assert 0 < len(spindles) <= len(everything) and report["spindles"] >= len(spindles)
-    assert len(core.extract_muscles(character, min_evidence=0.0)[0]) >= len(everything)
+    assert len(core.extract_muscles(character, options={"filters.minEvidence": 0.0})[0]) >= len(everything)
     # Hysteresis (the default) measures at least as well as none on this arm (seed 2: precision 1.0 vs 0.83).
-    strict, _ = core.extract_muscles(character, weak_fraction=1.0)
+    strict, _ = core.extract_muscles(character, options={"sectionBumps.weakFraction": 1.0})
     with_h, without = core.measure_extraction(everything, arm[1]), core.measure_extraction(strict, arm[1])
     assert len(strict) > 0
     assert with_h["recall"] >= without["recall"] and with_h["precision"] >= without["precision"]
@@ -111,10 +111,10 @@ def test_makehuman_trunk_is_mirror_consistent(core):
     nearest = np.linalg.norm(centres[:, None, :] - mirrored[None, :, :], axis=2).min(axis=1)
     assert nearest.max() < 0.01, nearest  # every muscle has a mirror image within 1 cm
     # The trunk floor only removes muscles (0 = none on the trunk).
-    loose, _ = core.extract_muscles(character, build_surfaces=False, min_relative_trunk=0.0)
+    loose, _ = core.extract_muscles(character, build_surfaces=False, options={"filters.minRelativeTrunk": 0.0})
     assert len(loose) >= len(muscles)
-    with pytest.raises(ValueError, match="min_relative_trunk"):
-        core.extract_muscles(character, min_relative_trunk=-1.0)
+    with pytest.raises(ValueError, match="filters.minRelativeTrunk"):
+        core.extract_muscles(character, options={"filters.minRelativeTrunk": -1.0})
     # Muscles whose ends lie on different bones of a chain wrap round the joint between them by default.
     crossing = [m for m in muscles if m.origin_bone != m.insertion_bone and m.wrap_type == "joint"]
     assert crossing and all(m.wrap_radius > 0 for m in crossing)
@@ -123,7 +123,7 @@ def test_makehuman_trunk_is_mirror_consistent(core):
     with pytest.raises(ValueError, match="joint_wrap"):
         core.extract_muscles(character, joint_wrap=-0.1)
     # Opt-in: mirrored limb profiles averaged too, so every muscle's mirror image is exact (to rounding).
-    twins, twin_report = core.extract_muscles(character, build_surfaces=False, mirror_limbs=True)
+    twins, twin_report = core.extract_muscles(character, build_surfaces=False, options={"profiles.mirrorLimbs": True})
     assert twin_report["mirrored"] > twin_report["split"]
     c = np.array([np.asarray(m.section_centers).mean(axis=0) for m in twins])
     assert np.linalg.norm(c[:, None, :] - (c * [-1.0, 1.0, 1.0])[None, :, :], axis=2).min(axis=1).max() < 1e-3
@@ -144,14 +144,14 @@ def test_bad_input_raises_value_error(core, arm):
         core.extract_muscles(character, vertex_mask=np.ones(3, dtype=bool))
     with pytest.raises(ValueError, match="spacing"):
         core.extract_muscles(character, spacing=-1.0)
-    with pytest.raises(ValueError, match="weak_fraction"):
-        core.extract_muscles(character, weak_fraction=0.0)
-    with pytest.raises(ValueError, match="min_relative"):
-        core.extract_muscles(character, min_relative=float("nan"))
-    with pytest.raises(ValueError, match="faint_relative"):
-        core.extract_muscles(character, faint_relative=1.5)
-    with pytest.raises(ValueError, match="min_evidence"):
-        core.extract_muscles(character, min_evidence=-1.0)
+    with pytest.raises(ValueError, match="sectionBumps.weakFraction"):
+        core.extract_muscles(character, options={"sectionBumps.weakFraction": 0.0})
+    with pytest.raises(ValueError, match="filters.minRelative"):
+        core.extract_muscles(character, options={"filters.minRelative": float("nan")})
+    with pytest.raises(ValueError, match="sectionBumps.faintRelative"):
+        core.extract_muscles(character, options={"sectionBumps.faintRelative": 1.5})
+    with pytest.raises(ValueError, match="filters.minEvidence"):
+        core.extract_muscles(character, options={"filters.minEvidence": -1.0})
     with pytest.raises(ValueError, match="levels"):
         core.subdivide(character, -1)
 
@@ -188,16 +188,17 @@ def test_cli_extract_makehuman(tmp_path):
 
 def test_continuous_floor_keeps_the_quadriceps(core):
     # On the muscular male the quadriceps stand out only 0.061-0.074 of the thigh radius, in every plane of the
-    # front thigh: kept by the continuous floor (0.6 x min_relative), dropped without it (continuous_fraction=1).
+    # front thigh: kept by the continuous floor (0.6 x filters.minRelative), dropped without it (continuousFraction 1).
     character = core.load_character(shared(MUSCULAR))
     default, _ = core.extract_muscles(character, build_surfaces=False)
-    off, report = core.extract_muscles(character, build_surfaces=False, continuous_fraction=1.0)
+    off, report = core.extract_muscles(character, build_surfaces=False, options={"filters.continuousFraction": 1.0})
     names = {m.name for m in default} - {m.name for m in off}
     assert len(off) < len(default) and report["dropped_flat"] > 0
     assert {"quadriceps.L", "quadriceps.R"} <= names, names
-    for bad in (dict(continuous_fraction=0.0), dict(continuous_fraction=1.5), dict(continuous_evidence=-1.0)):
+    for bad in ({"filters.continuousFraction": 0.0}, {"filters.continuousFraction": 1.5},
+                {"filters.continuousEvidence": -1.0}):
         with pytest.raises(ValueError, match="continuous"):
-            core.extract_muscles(character, build_surfaces=False, **bad)
+            core.extract_muscles(character, build_surfaces=False, options=bad)
 
 
 def test_bone_roles_and_the_report_say_what_was_analysed(core, arm):
@@ -323,3 +324,60 @@ def test_makehuman_muscles_are_named_anatomically(core):
     for stem in ("biceps", "triceps", "quadriceps", "calf", "pectoral"):
         assert {stem + ".L", stem + ".R"} <= names, stem
     assert len(names) == len(core.extract_muscles(character, build_surfaces=False)[0])  # unique
+
+
+USER_FACING = ("spacing", "min_confidence", "min_sections", "max_per_region", "joint_wrap")
+
+
+def test_extract_muscles_has_five_documented_user_facing_options(core):
+    """At most 6 user-facing numeric options, each documented; masks, roles and surfaces are data; the rest expert."""
+    doc = core.extract_muscles.__doc__
+    signature = doc.splitlines()[0]
+    numeric = [a.split(":")[0].strip() for a in signature.split("(", 1)[1].split(", ")
+               if ": float" in a or ": int" in a]
+    assert tuple(numeric) == USER_FACING and len(numeric) <= 6, signature
+    for name in USER_FACING + ("vertex_mask", "forced_regions", "bone_roles", "build_surfaces", "options"):
+        assert f"  {name}:" in doc or f"{name} (" in doc or f"{name}: " in doc, name
+    assert "limb radii" in doc  # spacing is body-relative
+    expert = core.extraction_options()
+    assert len(expert) > 40 and expert["filters.minEvidence"] == 6.6 and expert["ends.spanDistal"] is True
+    assert not {"filters.minConfidence", "link.minSections", "ends.jointWrapFraction", "scale.spacing"} & set(expert)
+
+
+def test_expert_options_reach_the_core(core):
+    """An expert override changes the result on a real character; passing every default changes nothing."""
+    character = core.load_character(shared(MUSCULAR))
+    default, report = core.extract_muscles(character, build_surfaces=False)
+    same, _ = core.extract_muscles(character, build_surfaces=False, options=core.extraction_options())
+    assert len(default) > 0 and [m.name for m in same] == [m.name for m in default]
+    assert all(np.array_equal(a.root_curve, b.root_curve) for a, b in zip(same, default))
+    strict, strict_report = core.extract_muscles(character, build_surfaces=False,
+                                                 options={"filters.minEvidence": 12.0, "filters.spindleEnds": 0.0})
+    assert len(strict) < len(default), (len(strict), len(default))
+    assert strict_report["dropped_short"] > report["dropped_short"]
+    # Spacing in limb radii: the automatic one (1/80 of the extent) is about 0.4 limb radii on this body.
+    coarse, coarse_report = core.extract_muscles(character, build_surfaces=False, spacing=3.0)
+    assert 0 < coarse_report["planes"] < report["planes"], (coarse_report["planes"], report["planes"])
+
+
+def test_old_expert_keywords_raise_type_error_bad_values_value_error(core, arm):
+    character, _ = arm
+    for old, key in (("min_evidence", "filters.minEvidence"), ("twin_reach", "filters.twinReach"),
+                     ("mirror_limbs", "profiles.mirrorLimbs"), ("span_distal", "ends.spanDistal"),
+                     ("weak_fraction", "sectionBumps.weakFraction")):
+        with pytest.raises(TypeError, match=key):
+            core.extract_muscles(character, **{old: 1.0})
+    with pytest.raises(TypeError, match="no_such_option"):
+        core.extract_muscles(character, no_such_option=1.0)
+    with pytest.raises(ValueError, match="unknown expert extraction option"):
+        core.extract_muscles(character, options={"filters.nothing": 1.0})
+    with pytest.raises(ValueError, match="integer"):
+        core.extract_muscles(character, options={"link.maxGap": 2.5})
+    with pytest.raises(ValueError, match="number or a bool"):
+        core.extract_muscles(character, options={"filters.minEvidence": "high"})
+    with pytest.raises(TypeError, match="dict"):
+        core.extract_muscles(character, options=[("filters.minEvidence", 1.0)])
+    for bad in (dict(min_confidence=1.5), dict(min_sections=0), dict(max_per_region=-1), dict(joint_wrap=-0.1),
+                dict(spacing=float("nan"))):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            core.extract_muscles(character, **bad)

@@ -133,7 +133,7 @@ def test_held_out_biped_calves_span_the_ankle_and_bulge_on_plantar_flexion(core,
     ankle_joint = [j for j in skin_quality.SYNTHETIC_BODY_JOINTS if j[0] == "ankle plantar flexion"]
     assert ankle_joint
     on = skin_quality.measure(core, character, muscles, ankle_joint, facing=tuple(facing))
-    off_muscles, _ = core.extract_muscles(character, span_distal=False)
+    off_muscles, _ = core.extract_muscles(character, options={"ends.spanDistal": False})
     off = skin_quality.measure(core, character, off_muscles, ankle_joint, facing=tuple(facing))
     assert len(on) == 1 and len(off) == 1
     r, r_off = on[0], off[0]

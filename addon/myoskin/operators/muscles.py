@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Muscle operators: extract, add from a marked region, remove, mirror, select, refresh, snap locators.
 Small: convert data (blender_io, muscle_io), call the core, report."""
+import json
 import traceback
 
 import bpy
@@ -156,14 +157,27 @@ class _MuscleOperator:
         return {'FINISHED'}
 
 
+def expert_options(text):
+    """The Extract operator's expert options: a JSON object {key: value} (empty = none)."""
+    if not text.strip():
+        return None
+    try:
+        options = json.loads(text)
+    except ValueError as e:
+        raise ValueError(f"Expert Options are not valid JSON ({e})") from None
+    if not isinstance(options, dict):
+        raise ValueError("Expert Options must be a JSON object {\"key\": value}")
+    return options
+
+
 class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
     """Find the muscles that shape the active skin (replaces this character's muscles)"""
     bl_idname = "myoskin.extract_muscles"
     bl_label = "Extract Muscles"
 
-    spacing: FloatProperty(name="Section Spacing", description="Distance between cutting planes "
-                           "(0 = automatic: 1/80 of the character's extent)", default=-1.0, min=-1.0,
-                           soft_max=0.2, subtype='DISTANCE', unit='LENGTH')
+    spacing: FloatProperty(name="Section Spacing", description="Distance between cutting planes in limb radii "
+                           "(the body's median limb radius; 0 = automatic: 1/80 of the character's extent; "
+                           "-1 = preferences)", default=-1.0, min=-1.0, soft_max=4.0)
     min_confidence: FloatProperty(name="Min Confidence", description="Drop muscles less significant than this "
                                   "(-1 = preferences)", default=-1.0, min=-1.0, max=1.0)
     min_sections: IntProperty(name="Min Sections", description="Sections a muscle needs (-1 = preferences)",
@@ -171,8 +185,13 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
     joint_wrap: FloatProperty(name="Joint Wrap", description="A muscle crossing a joint wraps round it on a "
                               "sphere of this times its thickness, so it bends with the skeleton (0 = straight)",
                               default=0.3, min=0.0, soft_max=1.0)
+    max_per_region: IntProperty(name="Max per Region", description="Keep at most this many muscles (the most "
+                                "confident) per region (0 = all)", default=0, min=0, soft_max=10)
     limit: EnumProperty(name="Limit To", items=LIMITS, default='ALL')
     vertex_group: StringProperty(name="Vertex Group", description="With Limit To = Vertex Group")
+    expert: StringProperty(name="Expert Options", description="Expert tuning, not for everyday use: a JSON object "
+                           "{key: value} of the core's extraction options (e.g. {\"filters.minEvidence\": 7}; "
+                           "the keys: Python _core.extraction_options())", default="")
 
     def run(self, context):
         prefs = get_preferences(context)
@@ -203,8 +222,9 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
                     raise ValueError(f"Vertex group '{self.vertex_group}' is empty")
             core = core_loader.core()
             muscles, report = core.extract_muscles(
-                character, spacing=spacing, vertex_mask=mask, min_confidence=min_confidence,
-                min_sections=min_sections, joint_wrap=self.joint_wrap, bone_roles=overrides)
+                character, spacing=spacing, min_confidence=min_confidence, min_sections=min_sections,
+                max_per_region=self.max_per_region, joint_wrap=self.joint_wrap, vertex_mask=mask,
+                bone_roles=overrides, options=expert_options(self.expert))
             left_out = left_out_lines(combined, report.get("excluded", []))
             last_extraction[arm.name] = {"muscles": len(muscles), "analysed": report["analysed"],
                                          "diagnosis": report["diagnosis"], "left_out": left_out}

@@ -72,6 +72,7 @@ class MYOSKIN_PT_extract(_WorkflowStep, bpy.types.Panel):
         col.prop(ui, "spacing")
         col.prop(ui, "min_confidence")
         col.prop(ui, "joint_wrap")
+        col.prop(ui, "max_per_region")
         col.prop(ui, "limit")
         if ui.limit == 'GROUP' and skin is not None:
             col.prop_search(ui, "vertex_group", skin, "vertex_groups")
@@ -80,7 +81,8 @@ class MYOSKIN_PT_extract(_WorkflowStep, bpy.types.Panel):
         op = row.operator("myoskin.extract_muscles", icon='MOD_SKIN')
         op.spacing, op.min_confidence, op.limit, op.vertex_group = (ui.spacing, ui.min_confidence, ui.limit,
                                                                     ui.vertex_group)
-        op.joint_wrap = ui.joint_wrap
+        op.joint_wrap, op.max_per_region, op.expert = ui.joint_wrap, ui.max_per_region, ui.expert
+        layout.prop(ui, "expert")  # tuning, not everyday use
         if state.bound:
             layout.label(text="Bound: unbind to extract again", icon='LOCKED')
         layout.label(text=f"{len(state.muscles)} muscles on {arm.name}", icon='OUTLINER_OB_MESH')

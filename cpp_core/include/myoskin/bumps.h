@@ -49,7 +49,7 @@ struct BumpOptions {
                                   // section follows within that tolerance; 0 = the lower envelope only
   int baseHarmonics = 0;  // > 0: the base is a radial Fourier series of this order (lower envelope, refitted
                           // to its support) instead of a conic: for trunk sections, whose oval, bean or
-                          // rounded-rectangle outline no conic follows (ExtractionOptions::trunkHarmonics)
+                          // rounded-rectangle outline no conic follows (SectionBumpOptions::trunkHarmonics)
 };
 
 // A bump: a run of consecutive polygon vertices (the skin arc over a muscle belly).

@@ -30,7 +30,7 @@ struct LinkOptions {
   double maxAngle = 0.45;       // radians (~26 degrees)
   int maxGap = 2;               // sections that may be missing between two linked bumps
   int minSections = 3;          // a muscle needs at least this many significant sections (and enough evidence:
-                                // ExtractionOptions::minEvidence)
+                                // ChainFilterOptions::minEvidence)
   bool branches = true;         // join merging/splitting chains with a transition section
   double mergeFactor = 0.5;     // fragments of one belly (chains of a family whose centres come within this
                                 // times their larger mean semi-axis a at the same or a neighbouring plane)
@@ -92,20 +92,9 @@ struct SurfaceOptions {
                                 // a long tendon (the calf's onto the heel) would draw the taper into a needle
 };
 
-struct ExtractionOptions {
-  PlaneOptions planes;          // spacing etc. of the cutting planes (sections.h)
-  ProfileOptions profiles;      // profile resampling (sections.h)
-  BumpOptions bumps;            // significance thresholds (bumps.h)
-  std::map<std::string, BoneRole> roleOverrides;  // bone name -> role (wins over the heuristics)
-  LinkOptions link;
-  EndOptions ends;
-  SurfaceOptions surface;
-  bool buildSurfaces = true;    // loft a surface mesh per muscle
-
-  // User control (paper, "User Control").
-  std::vector<char> vertexMask;                // #V (welded skin); empty = whole skin. Extract only here.
-  std::vector<std::vector<char>> forcedRegions;  // one #V mask per forced muscle: the dominant bump inside
-                                                 // the region is extracted even below significance
+// Bumps per section (stage 3-4, extraction_stages.h findSectionBumps): the hysteresis, the trunk's Fourier base,
+// the mesh-resolution floor and forced regions' floor. Lengths in metres at the reference body scale (BodyScaleOptions).
+struct SectionBumpOptions {
   double forcedMinProtrusion = 0.0005;         // metres: bumps weaker than this are not forced either
   double weakFraction = 0.8;                   // hysteresis: bumps down to this share of the significance
                                                // threshold are linked too, so a muscle whose bump fades
@@ -130,6 +119,20 @@ struct ExtractionOptions {
                                                // tail below faintRelative 0.335, and then the hybrid skinning's whole-arm volume
                                                // at 140 degrees grows more (+0.84 %) than LBS loses (-0.82 %). Works for
                                                // faintRelative 0.335-0.395.
+  int trunkHarmonics = 4;                      // trunk sections (abdomen, chest, neck) measure bumps against a radial
+                                               // Fourier base of this order (BumpOptions::baseHarmonics): a trunk's
+                                               // bean or rounded-rectangle outline is not an oval, and against a conic
+                                               // its whole flanks stood out as half-trunk "muscles"; 0 = conic base
+  int minBumpCrossings = 3;                    // a bump must contain at least this many points where its section
+                                               // crosses mesh edges: a narrower one is the mesh's own faceting (a
+                                               // low-poly limb's corners stand out like bellies), not relief the
+                                               // mesh resolves. 0 = off
+};
+
+// Chain filters (stage 5, filterChains): the length, evidence and height floors a linked chain must pass, and the
+// cues that keep a chain below them (closed spindle, mirror twin). Heights are relative to the section's mean radius,
+// evidence in sections of the default spacing, reaches in the chains' semi-axes: all body-relative.
+struct ChainFilterOptions {
   double minEvidence = 6.6;                    // a muscle's evidence, the sum of its linked bumps' significance (faint and
                                                // weak links included) times plane spacing / the default spacing (1/80 of
                                                // the skin's largest extent), must reach this: 4 sections at 1.65x the
@@ -171,22 +174,6 @@ struct ExtractionOptions {
                                                // chains 0.07; the neutral body's trunk chains are too short to count
                                                // at any floor from 0.04 to 0.1 (before the Fourier base, against a
                                                // conic, the floor was 0.15 and whole flanks passed it)
-  int trunkHarmonics = 4;                      // trunk sections (abdomen, chest, neck) measure bumps against a radial
-                                               // Fourier base of this order (BumpOptions::baseHarmonics): a trunk's
-                                               // bean or rounded-rectangle outline is not an oval, and against a conic
-                                               // its whole flanks stood out as half-trunk "muscles"; 0 = conic base
-  double referenceLimbRadius = 0.0;            // body scale: the defaults' lengths (every one but planes.spacing, which is
-                                               // in the character's own units, and the stages' inner tolerances) hold for
-                                               // a character in metres. Its units are found from its limb radius
-                                               // (bodyLimbRadius): the power of ten that brings that nearest to this
-                                               // radius; the character is scaled by it about the origin for the analysis
-                                               // and the muscles scaled back, so the same character in mm, cm, m or
-                                               // exported x100 / x0.01 gives the same muscles. 0 = kReferenceLimbRadius;
-                                               // < 0 = analyse in the file's own units
-  int minBumpCrossings = 3;                    // a bump must contain at least this many points where its section
-                                               // crosses mesh edges: a narrower one is the mesh's own faceting (a
-                                               // low-poly limb's corners stand out like bellies), not relief the
-                                               // mesh resolves. 0 = off
   // A cue of shape, not height (issue 13): a limb chain that misses the floors above (too short: minSections,
   // minEvidence; or too flat: minRelative) is still a muscle when it is a closed spindle, as a belly is: its bumps'
   // significance along consecutive planes rises to a significant peak and falls from it without a dip, both end links
@@ -219,6 +206,46 @@ struct ExtractionOptions {
   // 0.944), precision 1.0; no twin on the shared characters or the smooth bodies. 0 = off
   double twinReach = 1.0;
   double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones are kept)
+};
+
+// Body scale (stage 0, makeScaleContext): the power of ten the character is scaled by for the analysis, and the
+// plane spacing in limb radii.
+struct BodyScaleOptions {
+  double spacing = 0.0;                        // cutting-plane spacing in limb radii (bodyLimbRadius; 2 = a limb's
+                                               // diameter); 0 = planes.spacing (in the character's units), which
+                                               // itself 0 = automatic (1/80 of the skin's largest extent)
+  double referenceLimbRadius = 0.0;            // body scale: the defaults' lengths (every one but planes.spacing, which is
+                                               // in the character's own units, and the stages' inner tolerances) hold for
+                                               // a character in metres. Its units are found from its limb radius
+                                               // (bodyLimbRadius): the power of ten that brings that nearest to this
+                                               // radius; the character is scaled by it about the origin for the analysis
+                                               // and the muscles scaled back, so the same character in mm, cm, m or
+                                               // exported x100 / x0.01 gives the same muscles. 0 = kReferenceLimbRadius;
+                                               // < 0 = analyse in the file's own units
+};
+
+// Every option of the pipeline, stage by stage: the expert object (expertOptionKeys). The user-facing few, each
+// body-relative (README "Muscle extraction"; Python extract_muscles' keywords, the CLI's and batch's flags):
+//   scale.spacing (plane spacing in limb radii, 0 = automatic), filters.minConfidence (0-1), link.minSections
+//   (significant sections a muscle needs), maxPerRegion (0 = all), ends.jointWrapFraction (joint wrap radius in the
+//   muscle's semi-axes b, 0 = straight lines); data, not knobs: roleOverrides, vertexMask, forcedRegions.
+struct ExtractionOptions {
+  PlaneOptions planes;          // spacing etc. of the cutting planes (sections.h)
+  ProfileOptions profiles;      // profile resampling (sections.h)
+  BumpOptions bumps;            // significance thresholds (bumps.h)
+  std::map<std::string, BoneRole> roleOverrides;  // bone name -> role (wins over the heuristics)
+  LinkOptions link;
+  EndOptions ends;
+  SurfaceOptions surface;
+  bool buildSurfaces = true;    // loft a surface mesh per muscle
+
+  // User control (paper, "User Control").
+  std::vector<char> vertexMask;                // #V (welded skin); empty = whole skin. Extract only here.
+  std::vector<std::vector<char>> forcedRegions;  // one #V mask per forced muscle: the dominant bump inside
+                                                 // the region is extracted even below significance
+  SectionBumpOptions sectionBumps;             // stages 3-4: hysteresis, trunk base, mesh-resolution floor
+  ChainFilterOptions filters;                  // stage 5: floors and the spindle / twin cues
+  BodyScaleOptions scale;                      // stage 0: units detection
   int maxPerRegion = 0;                        // keep at most this many (most confident) per region; 0 = all
 };
 
@@ -287,8 +314,30 @@ struct ExtractionResult {
   ExtractionReport report;
 };
 
-// Throws InputError for an invalid character or a mask of the wrong size.
+// Throws InputError for an invalid character, a mask of the wrong size or an option out of its range.
 ExtractionResult extractMuscles(const Character& character, const ExtractionOptions& options = {});
+
+// ============================================================================
+// Expert options by name (CLI --expert KEY=VALUE / --options FILE.json, Python extract_muscles(options={...}))
+// ============================================================================
+
+// One tunable option of ExtractionOptions: its key (the field path, e.g. "filters.minEvidence"), its type
+// ("double", "int" or "bool") and its default. The user-facing five (ExtractionOptions) are not among them.
+struct ExpertOption {
+  std::string key;
+  std::string type;
+  double defaultValue = 0.0;
+};
+
+// Every expert option, in ExtractionOptions' order.
+std::vector<ExpertOption> expertOptions();
+
+// Sets one expert option by key. Throws InputError on an unknown key, a non-finite value, a non-integer value for
+// an int, or a value other than 0 / 1 for a bool (ranges are checked by extractMuscles).
+void setExpertOption(ExtractionOptions& options, const std::string& key, double value);
+
+// The current value of one expert option (bools as 0 / 1). Throws InputError on an unknown key.
+double expertOption(const ExtractionOptions& options, const std::string& key);
 
 // ============================================================================
 // Body scale and the parts of the skin that are analysed

@@ -1,0 +1,98 @@
+// Stage 0 of the extraction: the body surface (small and rigidly bound skin components left out, vertices
+// renumbered, masks remapped) and its scale context (units from the limb radius, spacing, mean edge length).
+#include <cmath>
+
+#include "muscles/extraction_stages.h"
+#include "myoskin/errors.h"
+
+namespace myoskin::stages {
+
+// ============================================================================
+// Scale context
+// ============================================================================
+
+ScaleContext makeScaleContext(const Character& body, const std::map<std::string, BoneRole>& roleOverrides,
+                              const BodyScaleOptions& options, double spacing) {
+  if (!std::isfinite(options.referenceLimbRadius)) throw InputError("referenceLimbRadius must be finite");
+  // The character's units are found from its limb radius (the power of ten that brings it nearest the reference).
+  ScaleContext s;
+  const std::vector<BoneRole> roles = characterBoneRoles(body, roleOverrides);
+  s.limbRadius = bodyLimbRadius(body, roles);
+  const double reference = options.referenceLimbRadius == 0 ? kReferenceLimbRadius : options.referenceLimbRadius;
+  s.factor = reference > 0 && s.limbRadius > 0 ? std::pow(10.0, std::round(std::log10(reference / s.limbRadius))) : 1.0;
+  if (options.spacing > 0) spacing = options.spacing * s.limbRadius;  // limb radii -> the character's units
+  s.planeSpacing = spacing * s.factor;
+  return s;
+}
+
+// ============================================================================
+// Body surface
+// ============================================================================
+
+BodySurface makeBodySurface(const Character& character, const ExtractionOptions& options) {
+  const int nv = character.mesh.numVertices();
+  BodySurface out;
+  // The body surface: small and rigidly bound components left out, vertices renumbered.
+  std::vector<ExcludedComponent>& excluded = out.excluded;
+  const std::vector<char> keep = bodySurfaceMask(character, excluded);
+  std::vector<int> newIndex(nv, -1);
+  Character body;
+  body.name = character.name;
+  body.skeleton = weightedSkeleton(character);
+  std::vector<char> used(nv, 0);
+  for (int f = 0; f < character.mesh.numTriangles(); ++f)
+    for (int c = 0; c < 3; ++c) used[character.mesh.triangles(f, c)] = 1;
+  int count = 0;
+  for (int v = 0; v < nv; ++v)
+    if (used[v] && keep[v]) newIndex[v] = count++;
+  body.mesh.vertices.resize(count, 3);
+  if (character.hasWeights()) {
+    body.weights.joints.resize(count, character.weights.influences());
+    body.weights.weights.resize(count, character.weights.influences());
+  }
+  for (int v = 0; v < nv; ++v) {
+    if (newIndex[v] < 0) continue;
+    body.mesh.vertices.row(newIndex[v]) = character.mesh.vertices.row(v);
+    if (character.hasWeights()) {
+      body.weights.joints.row(newIndex[v]) = character.weights.joints.row(v);
+      body.weights.weights.row(newIndex[v]) = character.weights.weights.row(v);
+    }
+  }
+  std::vector<Eigen::Vector3i> tris;
+  for (int f = 0; f < character.mesh.numTriangles(); ++f) {
+    const Eigen::Vector3i t = character.mesh.triangles.row(f).transpose();
+    if (newIndex[t[0]] >= 0 && newIndex[t[1]] >= 0 && newIndex[t[2]] >= 0)
+      tris.emplace_back(newIndex[t[0]], newIndex[t[1]], newIndex[t[2]]);
+  }
+  body.mesh.triangles.resize(static_cast<Eigen::Index>(tris.size()), 3);
+  for (size_t f = 0; f < tris.size(); ++f) body.mesh.triangles.row(static_cast<Eigen::Index>(f)) = tris[f].transpose();
+  auto remap = [&](const std::vector<char>& mask) {
+    std::vector<char> renumbered(count, 0);
+    for (int v = 0; v < nv; ++v)
+      if (newIndex[v] >= 0) renumbered[newIndex[v]] = mask[v];
+    return renumbered;
+  };
+  if (!options.vertexMask.empty()) out.vertexMask = remap(options.vertexMask);
+  for (const auto& region : options.forcedRegions) out.forcedRegions.push_back(remap(region));
+
+  // The body scale: the character is scaled about the origin into its units, so mm, cm, m and x100 exports give the
+  // same muscles.
+  out.scale = makeScaleContext(body, options.roleOverrides, options.scale, options.planes.spacing);
+  const double factor = out.scale.factor;
+  auto toBody = [&](const Vec3& p) { return Vec3(p * factor); };
+  for (int v = 0; v < count; ++v) body.mesh.vertices.row(v) = toBody(body.mesh.vertices.row(v).transpose()).transpose();
+  for (Bone& b : body.skeleton.bones) {
+    b.head = toBody(b.head), b.tail = toBody(b.tail);
+    b.rest.block<3, 1>(0, 3) = toBody(b.rest.block<3, 1>(0, 3));
+  }
+  out.scale.defaultSpacing = principalExtent(body.mesh.vertices) / 80.0;
+  double edges = 0.0;
+  for (int f = 0; f < body.mesh.numTriangles(); ++f)
+    for (int c = 0; c < 3; ++c)
+      edges += (body.mesh.vertices.row(body.mesh.triangles(f, (c + 1) % 3)) - body.mesh.vertices.row(body.mesh.triangles(f, c))).norm();
+  out.scale.meanEdgeLength = body.mesh.numTriangles() > 0 ? edges / (3.0 * body.mesh.numTriangles()) : 0.0;
+  out.body = std::move(body);
+  return out;
+}
+
+}  // namespace myoskin::stages

@@ -1,0 +1,217 @@
+// Stage 5b of the extraction: the floors a linked chain must pass (length, evidence, height, confidence) and the
+// cues that keep a chain below them (a closed spindle; the mirror twin of a kept chain).
+#include <algorithm>
+#include <cmath>
+
+#include "muscles/extraction_stages.h"
+#include "muscles/muscle_util.h"
+
+namespace myoskin::stages {
+
+namespace {
+
+// True when the chain's links of at least `fraction` of the significance threshold lie in consecutive planes of
+// its family: the belly stands out in every plane between its ends (fainter tail links aside).
+bool continuousChain(const MuscleChain& c, const std::vector<SectionBumps>& sections, double fraction) {
+  std::vector<int> orders;
+  for (const ChainLink& l : c.links)
+    if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size()) &&
+        sections[l.section].significance[l.bump] >= fraction)
+      orders.push_back(sections[l.section].plane.order);
+  std::sort(orders.begin(), orders.end());
+  for (size_t i = 1; i < orders.size(); ++i)
+    if (orders[i] != orders[i - 1] + 1) return false;
+  return !orders.empty();
+}
+
+// True when the chain is a closed spindle (ChainFilterOptions::spindleEnds): its significance along its planes rises
+// to a peak and falls from it (each real link no lower than the one before it up to the peak, no higher after it, in
+// plane order), the peak is significant (>= 1), both end links stay below `ends` of the peak, the links cover at least
+// `minLinks` consecutive planes, and its bumps are steep: their protrusion / skin arc length is `steepness` on average.
+// A belly swells and tapers within the sectioned length as a rounded cap; a body contour cut off by the plane range (a
+// fold running into a joint), soft relief that comes and goes along the limb, or a broad low swell does not.
+// The chain's bumps' mean steepness: protrusion / skin arc length (relative / width of each bump).
+double chainSteepness(const MuscleChain& c, const std::vector<SectionBumps>& sections) {
+  double steep = 0.0;
+  int count = 0;
+  for (const ChainLink& l : c.links) {
+    if (l.bump < 0) continue;
+    const SectionBumps& s = sections[l.section];
+    const bool measured = l.bump < static_cast<int>(s.width.size()) && l.bump < static_cast<int>(s.relative.size());
+    steep += measured && s.width[l.bump] > 0 ? s.relative[l.bump] / s.width[l.bump] : 0.0;
+    ++count;
+  }
+  return count > 0 ? steep / count : 0.0;
+}
+
+bool spindleChain(const MuscleChain& c, const std::vector<SectionBumps>& sections, double ends, int minLinks,
+                  double steepness) {
+  std::vector<std::pair<int, double>> profile;  // (plane order, significance) of the real links
+  for (const ChainLink& l : c.links)
+    if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size()))
+      profile.emplace_back(sections[l.section].plane.order, sections[l.section].significance[l.bump]);
+  if (profile.empty() || chainSteepness(c, sections) < steepness) return false;
+  std::sort(profile.begin(), profile.end());
+  const int n = static_cast<int>(profile.size());
+  if (n < std::max(minLinks, 3)) return false;
+  for (int k = 1; k < n; ++k)
+    if (profile[k].first != profile[k - 1].first + 1) return false;
+  int peak = 0;
+  for (int k = 1; k < n; ++k)
+    if (profile[k].second > profile[peak].second) peak = k;
+  const double top = profile[peak].second;
+  if (!(top >= 1.0) || profile.front().second >= ends * top || profile.back().second >= ends * top) return false;
+  for (int k = 1; k <= peak; ++k)
+    if (profile[k].second < profile[k - 1].second) return false;
+  for (int k = peak + 1; k < n; ++k)
+    if (profile[k].second > profile[k - 1].second) return false;
+  return true;
+}
+
+// True when chain b is chain a's mirror twin: a limb chain of the same family on another limb whose real bumps' centres,
+// mirrored through the skeleton's mirror plane (point c, unit normal n), lie within `reach` times the larger of the two
+// chains' mean semi-axis a of the other's centres, at least half of them both ways (the same belly on the other side).
+bool mirrorTwin(const MuscleChain& a, const MuscleChain& b, const std::vector<SectionBumps>& sections, const Vec3& c,
+                const Vec3& n, double reach) {
+  if (a.family != b.family || a.familyIndex == b.familyIndex) return false;
+  auto centres = [&](const MuscleChain& chain, bool mirrored, double& meanA) {
+    std::vector<Vec3> out;
+    meanA = 0.0;
+    for (const ChainLink& l : chain.links) {
+      if (l.bump < 0) continue;
+      Vec3 p = planePoint(sections[l.section].plane, l.ellipse.center);
+      if (mirrored) p -= 2.0 * (p - c).dot(n) * n;
+      out.push_back(p);
+      meanA += l.ellipse.a;
+    }
+    if (!out.empty()) meanA /= out.size();
+    return out;
+  };
+  double aA = 0.0, aB = 0.0;
+  const std::vector<Vec3> pa = centres(a, true, aA), pb = centres(b, false, aB);
+  if (pa.empty() || pb.empty()) return false;
+  const double tol = reach * std::max(aA, aB);
+  auto mostlyNear = [&](const std::vector<Vec3>& from, const std::vector<Vec3>& to) {
+    int near = 0;
+    for (const Vec3& p : from) {
+      double best = INFINITY;
+      for (const Vec3& q : to) best = std::min(best, (p - q).norm());
+      near += best <= tol;
+    }
+    return 2 * near >= static_cast<int>(from.size());
+  };
+  return mostlyNear(pa, pb) && mostlyNear(pb, pa);
+}
+
+}  // namespace
+
+// ============================================================================
+// Chain filters
+// ============================================================================
+
+std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std::vector<SectionBumps>& sections,
+                                      const SectionCut& cut, const Skeleton& sk, const ScaleContext& scale,
+                                      const ChainFilterOptions& options, int minSections, ExtractionReport& rep) {
+  const std::vector<CuttingPlane>& planes = cut.planes;
+  const double evidenceScale = scale.evidenceScale();  // evidence in sections of the default spacing
+  std::vector<MuscleChain> kept;
+  std::vector<std::pair<size_t, int>> dropped;  // limb chains the floors dropped: (chain, record index or -1)
+  for (size_t ci = 0; ci < chains.size(); ++ci) {
+    MuscleChain& c = chains[ci];
+    // The chain's record: its bumps along it, its shape, and (set below) the verdict.
+    ChainRecord* record = nullptr;
+    if (c.realSections >= 2) {
+      ChainRecord r;
+      r.family = c.family;
+      r.bone = c.bone >= 0 ? sk.bones[c.bone].name : "";
+      for (const ChainLink& l : c.links)
+        if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size())) {
+          r.centres.push_back(planePoint(sections[l.section].plane, l.ellipse.center));
+          r.significance.push_back(sections[l.section].significance[l.bump]);
+        }
+      r.steepness = chainSteepness(c, sections);
+      r.spindle = !detail::trunkFamily(c.family) &&
+                  spindleChain(c, sections, options.spindleEnds, options.spindleSections, options.spindleSteepness);
+      r.verdict = "kept";
+      rep.chainRecords.push_back(std::move(r));
+      record = &rep.chainRecords.back();
+    }
+    auto drop = [&](int& counter, const char* verdict) {
+      ++counter;
+      if (record) record->verdict = verdict;
+    };
+    if (c.forced) {
+      if (record) record->verdict = "forced";
+      kept.push_back(std::move(c));
+      continue;
+    }
+    double evidence = 0.0;
+    for (const ChainLink& l : c.links)
+      if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size()))
+        evidence += sections[l.section].significance[l.bump];
+    // The floors on length and height (a chain that misses one is dropped unless it is a closed spindle).
+    const bool trunk = detail::trunkFamily(c.family);
+    bool shortChain = c.strongSections < minSections || evidence * evidenceScale < options.minEvidence;
+    bool flat = false;
+    double floor = trunk ? options.minRelativeTrunk : options.minRelative;
+    if (!trunk && options.continuousFraction > 0 && evidence * evidenceScale >= options.continuousEvidence &&
+        continuousChain(c, sections, options.magnitudeFraction))
+      floor *= std::min(options.continuousFraction, 1.0);
+    if (!shortChain && floor > 0) {  // the bumps' mean height relative to their sections' size (faint tails left out)
+      double sum = 0.0;
+      int count = 0;
+      for (const ChainLink& l : c.links)
+        if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].relative.size()) &&
+            sections[l.section].significance[l.bump] >= options.magnitudeFraction)
+          sum += sections[l.section].relative[l.bump], ++count;
+      flat = count == 0 || sum < floor * count;
+    }
+    const bool spindle = (shortChain || flat) && record && record->spindle;
+    if ((shortChain || flat) && !spindle && !trunk)
+      dropped.emplace_back(ci, record ? static_cast<int>(record - rep.chainRecords.data()) : -1);
+    if (shortChain && !spindle) {
+      drop(rep.droppedShort, "short");
+      continue;
+    }
+    if (flat && !spindle) {
+      drop(rep.droppedFlat, "flat");
+      continue;
+    }
+    if (c.confidence < options.minConfidence) {
+      drop(rep.droppedConfidence, "confidence");
+      continue;
+    }
+    rep.spindles += spindle;
+    if (spindle) record->verdict = "spindle";
+    kept.push_back(c);
+  }
+  // Mirror twins (ChainFilterOptions::twinReach): on a mirrored body a limb chain the floors dropped is kept when its
+  // twin on the other limb passed them (the same belly seen twice; the floors decided on one side's sampling).
+  Vec3 mc, mn;
+  if (options.twinReach > 0 && skeletonMirrorPlane(planes, mc, mn)) {
+    const size_t passed = kept.size();
+    for (const auto& [ci, ri] : dropped) {
+      const MuscleChain& c = chains[ci];
+      bool twin = false;
+      for (size_t k = 0; k < passed && !twin; ++k) {
+        if (kept[k].forced || !mirrorTwin(kept[k], c, sections, mc, mn, options.twinReach)) continue;
+        // Only a missing pair member: not when a kept chain on this chain's limb is that chain's twin already.
+        twin = true;
+        for (size_t j = 0; j < passed && twin; ++j)
+          twin = !(j != k && kept[j].familyIndex == c.familyIndex &&
+                   mirrorTwin(kept[k], kept[j], sections, mc, mn, options.twinReach));
+      }
+      if (!twin) continue;
+      ++rep.twins;
+      if (ri >= 0) {
+        ChainRecord& r = rep.chainRecords[ri];
+        (r.verdict == "short" ? rep.droppedShort : rep.droppedFlat) -= 1;
+        r.verdict = "twin";
+      }
+      kept.push_back(c);
+    }
+  }
+  return kept;
+}
+
+}  // namespace myoskin::stages
