@@ -247,6 +247,8 @@ struct ChainRecord {
   std::string bone;                   // the bone of most of its planes
   std::vector<Vec3> centres;          // its bumps' ellipse centres in plane order (character units)
   std::vector<double> significance;   // per bump, relative to the protrusion threshold (>= 1 significant)
+  std::vector<double> relative;       // per bump, its protrusion / its section's mean radius
+  std::vector<int> planes;            // per bump, its plane's order along the family (CuttingPlane::order)
   double steepness = 0.0;             // its bumps' mean protrusion / skin arc length (spindleSteepness)
   bool spindle = false;               // a closed spindle (spindleEnds; limb families only)
   std::string verdict;                // "kept" (before family dominance), "spindle" (kept below the floors as a closed
