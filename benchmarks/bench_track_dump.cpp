@@ -39,7 +39,10 @@ void dump(const std::string& set, const Character& c, const std::vector<TrueMusc
     for (size_t k = 0; k < ch.significance.size(); ++k) std::printf("%s%.3f", k ? "," : "", ch.significance[k]);
     std::printf("],\"rel\":[");
     for (size_t k = 0; k < ch.relative.size(); ++k) std::printf("%s%.4f", k ? "," : "", ch.relative[k]);
-    std::printf("],\"planes\":[");
+    std::printf("],\"radius\":[");
+    for (size_t k = 0; k < ch.radius.size(); ++k) std::printf("%s%.5f", k ? "," : "", ch.radius[k]);
+    std::printf("],\"length\":%.5f,\"limb\":%.5f", ch.centres.size() > 1 ? (ch.centres.back() - ch.centres.front()).norm() : 0.0, r.report.limbRadius);
+    std::printf(",\"planes\":[");
     for (size_t k = 0; k < ch.planes.size(); ++k) std::printf("%s%d", k ? "," : "", ch.planes[k]);
     std::printf("]}\n");
   }

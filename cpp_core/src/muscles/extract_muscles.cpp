@@ -259,8 +259,10 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       containMuscleSurface(m.surface, std::max(3, options.surface.ringVertices), skin, options.surface.skinMargin);
   }
   ExtractionReport& rep = result.report;
-  for (ChainRecord& r : rep.chainRecords)
+  for (ChainRecord& r : rep.chainRecords) {
     for (Vec3& p : r.centres) p = fromBody(p);
+    for (double& x : r.radius) x /= factor;
+  }
   rep.limbRadius = limbRadius;
   rep.scale = factor;
   rep.excluded = std::move(excluded);
@@ -275,9 +277,9 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
   const int nv = character.mesh.numVertices();
   if (options.trunkHarmonics < 0 || options.trunkHarmonics > 16)
     throw InputError("trunkHarmonics must be in [0, 16], got " + std::to_string(options.trunkHarmonics));
-  if (!(options.spindleEnds >= 0.0 && options.spindleEnds <= 1.0) || options.spindleSections < 0 ||
+  if (!(options.spindleEnds >= 0.0 && options.spindleEnds <= 1.0) || !(options.spindleLength >= 0.0 && std::isfinite(options.spindleLength)) ||
       !(options.spindleSteepness >= 0.0 && std::isfinite(options.spindleSteepness)))
-    throw InputError("spindle options: spindleEnds must be in [0, 1], spindleSections >= 0 and spindleSteepness finite "
+    throw InputError("spindle options: spindleEnds must be in [0, 1], spindleLength and spindleSteepness finite "
                      "and >= 0");
   if (!(options.twinReach >= 0.0 && std::isfinite(options.twinReach)))
     throw InputError("twinReach must be finite and >= 0");
@@ -490,7 +492,7 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
     evidenceScale = options.planes.spacing / (principalExtent(character.mesh.vertices) / 80.0);
   }
   detail::SpindleOptions spindle;  // the closed-spindle cue (track_evidence.h)
-  spindle.ends = options.spindleEnds, spindle.minPlanes = options.spindleSections;
+  spindle.ends = options.spindleEnds, spindle.minLength = options.spindleLength;
   spindle.steepness = options.spindleSteepness;
   std::vector<MuscleChain> kept;
   std::vector<std::pair<size_t, int>> dropped;  // limb chains the floors dropped: (chain, record index or -1)
@@ -509,6 +511,7 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
           const std::vector<double>& rel = sections[l.section].relative;
           r.relative.push_back(l.bump < static_cast<int>(rel.size()) ? rel[l.bump] : 0.0);
           r.planes.push_back(sections[l.section].plane.order);
+          r.radius.push_back(std::sqrt(l.ellipse.a * l.ellipse.b));
         }
       r.steepness = detail::chainSteepness(c, sections);
       r.spindle = !detail::trunkFamily(c.family) && detail::closedSpindle(c, sections, spindle);
@@ -557,7 +560,9 @@ ExtractionResult extractAtBodyScale(const Character& character, const Extraction
       drop(rep.droppedFlat, "flat");
       continue;
     }
-    if (c.confidence < options.minConfidence) {  // a faint spindle's confidence is low: its twin may still keep it
+    // The confidence floor scores height and count, which a closed spindle is kept without (its shape is its evidence);
+    // a chain dropped by it may still be kept as a mirror twin.
+    if (c.confidence < options.minConfidence && !spindle) {
       if (!trunk) dropped.emplace_back(ci, record ? static_cast<int>(record - rep.chainRecords.data()) : -1);
       drop(rep.droppedConfidence, "confidence");
       continue;

@@ -2,6 +2,7 @@
 #include "muscles/track_evidence.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace myoskin::detail {
 
@@ -33,11 +34,23 @@ double chainSteepness(const MuscleChain& chain, const std::vector<SectionBumps>&
   return count > 0 ? steep / count : 0.0;
 }
 
-// Consecutive planes, one peak (reversals within tolerance), low ends, steep bumps.
+// Consecutive planes over minLength radii, one peak (reversals within tolerance), low ends, steep bumps.
 bool closedSpindle(const MuscleChain& chain, const std::vector<SectionBumps>& sections, const SpindleOptions& options) {
   const std::vector<std::pair<int, double>> profile = trackProfile(chain, sections);
   const int n = static_cast<int>(profile.size());
-  if (n < std::max(options.minPlanes, 3) || chainSteepness(chain, sections) < options.steepness) return false;
+  if (n < 3 || chainSteepness(chain, sections) < options.steepness) return false;
+  // Its length in its bumps' mean radius: first to last real link's centre, in 3D.
+  const ChainLink *first = nullptr, *last = nullptr;
+  double radius = 0.0;
+  for (const ChainLink& l : chain.links) {
+    if (l.bump < 0) continue;
+    if (!first || sections[l.section].plane.order < sections[first->section].plane.order) first = &l;
+    if (!last || sections[l.section].plane.order > sections[last->section].plane.order) last = &l;
+    radius += std::sqrt(l.ellipse.a * l.ellipse.b) / n;
+  }
+  const double length = (planePoint(sections[last->section].plane, last->ellipse.center) -
+                         planePoint(sections[first->section].plane, first->ellipse.center)).norm();
+  if (!(length >= options.minLength * radius)) return false;
   for (int k = 1; k < n; ++k)
     if (profile[k].first != profile[k - 1].first + 1) return false;
   int peak = 0;
