@@ -1,5 +1,10 @@
-// Scratch (recall4): every limb chain record of the tune characters, smooth bodies and MakeHuman (spacings x 0.9-1.1),
-// one JSON object per line, labelled by the true muscle it lies on.  bench_track_dump first last
+// Every limb chain of bumps as the floors and the closed-spindle test (track_evidence.h) see it (issue 13, track
+// evidence): the generated tune characters and their smooth twins, then MakeHuman muscular and neutral at plane spacings
+// x 0.9-1.1. One JSON object per line: per character a summary (found, true, matched), its skipped sections, and per
+// limb chain its bumps' significance, height relative to the section radius, ellipse radius sqrt(a b), plane order, its
+// length (first to last centre), steepness, verdict and the true muscle it lies on ("name:found" / "name:missed", "F"
+// for none). Printed, never asserted: for choosing the spindle test's settings on tune seeds only.
+//   bench_track_dump [first_seed last_seed [makehuman 0|1]]   (default: 1 11 1)
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
