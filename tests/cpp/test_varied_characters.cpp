@@ -150,7 +150,7 @@ TEST(VariedCharacters, HeldOutRecallAndPrecision) {
         if (c.verdict != "spindle") continue;
         ++rescued;
         EXPECT_TRUE(c.spindle);
-        EXPECT_GE(c.significance.size(), 4u);
+        EXPECT_GE(c.significance.size(), 3u);
         EXPECT_GE(c.steepness, ExtractionOptions{}.filters.spindleSteepness);
         const double top = *std::max_element(c.significance.begin(), c.significance.end());
         EXPECT_LT(std::max(c.significance.front(), c.significance.back()), ExtractionOptions{}.filters.spindleEnds * top);
@@ -169,7 +169,9 @@ TEST(VariedCharacters, HeldOutRecallAndPrecision) {
     EXPECT_GT(spindles, 0) << bodyKindName(kind);  // the faint bellies the floors drop (ExtractionOptions::spindleEnds)
     if (kind == BodyKind::Biped) EXPECT_GT(twins, 0);  // ... and their mirror twins (ExtractionOptions::twinReach)
     // Measured against the visible length (measureExtraction: where a muscle raises the skin by at least half its peak
-    // relief, TrueMuscle::relief): biped recall 0.868, precision 0.960; quadruped recall 0.969, precision 0.977 (with
+    // relief, TrueMuscle::relief): biped recall 0.931, precision 0.960; quadruped recall 0.984, precision 0.977 (before
+    // the closed spindle needed no significant peak, was measured in its bumps' radii instead of 4 planes and skipped the
+    // confidence floor, track_evidence.h: biped 0.868 / 0.960, quadruped 0.969 / 0.977; with
     // ExtractionOptions::spindleEnds 0.75 and spindleSteepness 0.05: biped 0.826 / 0.958, quadruped 0.953 / 0.977; before
     // the torso and mirrored limb frames followed the body's own left-right axis, skeletonMirrorPlane: biped 0.819 /
     // 0.957, quadruped 0.945 / 0.975; without
@@ -180,7 +182,7 @@ TEST(VariedCharacters, HeldOutRecallAndPrecision) {
     if (recall < 0.9) std::printf("SHORT OF TARGET: %s mean recall %.3f < 0.9\n", bodyKindName(kind), recall);
     if (precision < 0.9) std::printf("SHORT OF TARGET: %s mean precision %.3f < 0.9\n", bodyKindName(kind), precision);
     const bool biped = kind == BodyKind::Biped;
-    EXPECT_GE(recall, biped ? 0.86 : 0.96) << bodyKindName(kind);
+    EXPECT_GE(recall, biped ? 0.92 : 0.975) << bodyKindName(kind);
     EXPECT_GE(precision, biped ? 0.95 : 0.97) << bodyKindName(kind);
   }
 }
@@ -278,7 +280,7 @@ TEST(VariedCharacters, RefusesBadOptions) {
     ExtractionOptions e;
     e.buildSurfaces = false;
     if (bad == 0) e.filters.spindleEnds = 1.5;
-    if (bad == 1) e.filters.spindleSections = -1;
+    if (bad == 1) e.filters.spindleLength = -1;
     if (bad == 2) e.filters.spindleSteepness = std::nan("");
     EXPECT_NE(test::inputErrorOf([&] { extractMuscles(arm.character, e); }).find("spindle"), std::string::npos) << bad;
   }

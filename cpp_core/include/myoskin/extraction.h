@@ -174,26 +174,25 @@ struct ChainFilterOptions {
                                                // chains 0.07; the neutral body's trunk chains are too short to count
                                                // at any floor from 0.04 to 0.1 (before the Fourier base, against a
                                                // conic, the floor was 0.15 and whole flanks passed it)
-  // A cue of shape, not height (issue 13): a limb chain that misses the floors above (too short: minSections,
-  // minEvidence; or too flat: minRelative) is still a muscle when it is a closed spindle, as a belly is: its bumps'
-  // significance along consecutive planes rises to a significant peak and falls from it without a dip, both end links
-  // stay below spindleEnds of the peak (the belly tapers on both sides within the sectioned length), it covers at least
-  // spindleSections consecutive planes, and its bumps are steep: protrusion / skin arc length at least
-  // spindleSteepness on average (a rounded cap, not a broad low swell). Measured (bench_spindle_cue) on the generated
-  // tune seeds 1-3 at the 3.5 mm floor: of the 17 chains of true bellies the floors drop (brachialis, tibialis
-  // anterior, forearm flexors and extensors; 4+ bumps, a significant peak) 11 are such spindles (higher end 0.47-0.74
-  // of the peak, steepness 0.060-0.101; the rest end near their peak, 0.75-0.99, at the bone's first plane, or are
-  // broad, 0.049), no false chain is dropped there, and none of MakeHuman's 14 dropped chains is a spindle (several
-  // peaks, or a peak at an end). Over plane spacings x 0.9-1.1 the neutral lower-leg chains with the profile (peak
-  // 1.03-1.06) have steepness 0.036-0.038, the muscular body's unpaired lower-leg chain at x 1.05 0.037; neutral's
-  // forearm pair at x 1.075 (0.059) is kept. Ends 0.85 or 1 add neutral chains (x 0.95: neutral 8 and 10 against
-  // muscular 20); 5 sections lose tune recall 0.852 -> 0.815. Once mirrored limbs were resampled from mirrored points
-  // (skeletonMirrorPlane), ends 0.85 and steepness 0.04 (first 0.75 and 0.05): tune seeds 1-11 biped recall 0.914 ->
-  // 0.934, quadruped 0.938 -> 0.949 (precision unchanged), held-out biped 0.826 -> 0.868, quadruped 0.953 -> 0.969; the
-  // shared characters' and the synthetic arm's muscles unchanged, MakeHuman neutral at most half of muscular at every
-  // spacing x 0.9-1.1 (neutral 8 against 20 and 22 at x 0.95 and 0.975). 0 = off
+  // A cue of shape, not height (issue 13, track-level evidence; the test lives in muscles/track_evidence.cpp): a limb
+  // chain that misses the floors above (too short: minSections, minEvidence; or too flat: minRelative) is still a muscle
+  // when its whole track is a closed spindle, as a belly is: its bumps' significance along 3 or more consecutive planes
+  // rises to a peak and falls from it (reversals within 5 % of the peak), both end links stay below spindleEnds of the
+  // peak (the belly tapers on both sides within the sectioned length), the track is at least spindleLength times its
+  // bumps' mean radius long (a belly is longer than wide; a crease or a fold at a joint is not), and its bumps are
+  // steep: protrusion / skin arc length at least spindleSteepness on average (a rounded cap, not a broad low swell). No
+  // link need be significant: a faint belly's bumps lie at 0.5-1 of the threshold over its whole length, and the shape
+  // along the track is the evidence. History: first (bench_spindle_cue, tune seeds 1-3) a significant peak, 4 planes,
+  // ends 0.75, steepness 0.05; then ends 0.85, steepness 0.04 (tune seeds 1-11 biped recall 0.914 -> 0.934, held-out
+  // biped 0.826 -> 0.868, quadruped 0.953 -> 0.969). Then the peak requirement dropped, 5 % reversals allowed and 4 planes
+  // replaced by 2.5 radii (bench_track_dump, tune seeds 1-11, smooth bodies, MakeHuman at spacings x 0.9-1.1): tune
+  // biped recall 0.934 -> 0.960 (with confidence-dropped chains kept as mirror twins), quadruped 0.949 -> 0.955,
+  // precision unchanged, no smooth-body muscle, MakeHuman counts unchanged at every spacing. Measured windows: reversals
+  // 0.02-0.08 of the peak (0.15 adds neutral lower-leg chains at x 1.05 and 1.1); length 2.0-2.75 radii (3.0 loses a
+  // kept triceps spindle at 2.8; the neutral body's 3-plane spindle-shaped chains are 1.5-2.1 radii long, the true
+  // brachialis ones 3.9-4.1). 0 = off (spindleEnds)
   double spindleEnds = 0.85;
-  int spindleSections = 4;
+  double spindleLength = 2.5;
   double spindleSteepness = 0.04;
   // Mirror twins (issue 13): on a body with a mirror plane (a torso plane on it, CuttingPlane::mirrorAxis), a limb chain
   // that misses the floors above (and is no closed spindle) is kept when its mirror twin passed them: a chain of the
@@ -274,6 +273,9 @@ struct ChainRecord {
   std::string bone;                   // the bone of most of its planes
   std::vector<Vec3> centres;          // its bumps' ellipse centres in plane order (character units)
   std::vector<double> significance;   // per bump, relative to the protrusion threshold (>= 1 significant)
+  std::vector<double> relative;       // per bump, its protrusion / its section's mean radius
+  std::vector<int> planes;            // per bump, its plane's order along the family (CuttingPlane::order)
+  std::vector<double> radius;         // per bump, its ellipse's mean radius sqrt(a b) (character units)
   double steepness = 0.0;             // its bumps' mean protrusion / skin arc length (spindleSteepness)
   bool spindle = false;               // a closed spindle (spindleEnds; limb families only)
   std::string verdict;                // "kept" (before family dominance), "spindle" (kept below the floors as a closed

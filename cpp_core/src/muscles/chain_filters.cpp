@@ -5,6 +5,7 @@
 
 #include "muscles/extraction_stages.h"
 #include "muscles/muscle_util.h"
+#include "muscles/track_evidence.h"
 
 namespace myoskin::stages {
 
@@ -22,50 +23,6 @@ bool continuousChain(const MuscleChain& c, const std::vector<SectionBumps>& sect
   for (size_t i = 1; i < orders.size(); ++i)
     if (orders[i] != orders[i - 1] + 1) return false;
   return !orders.empty();
-}
-
-// True when the chain is a closed spindle (ChainFilterOptions::spindleEnds): its significance along its planes rises
-// to a peak and falls from it (each real link no lower than the one before it up to the peak, no higher after it, in
-// plane order), the peak is significant (>= 1), both end links stay below `ends` of the peak, the links cover at least
-// `minLinks` consecutive planes, and its bumps are steep: their protrusion / skin arc length is `steepness` on average.
-// A belly swells and tapers within the sectioned length as a rounded cap; a body contour cut off by the plane range (a
-// fold running into a joint), soft relief that comes and goes along the limb, or a broad low swell does not.
-// The chain's bumps' mean steepness: protrusion / skin arc length (relative / width of each bump).
-double chainSteepness(const MuscleChain& c, const std::vector<SectionBumps>& sections) {
-  double steep = 0.0;
-  int count = 0;
-  for (const ChainLink& l : c.links) {
-    if (l.bump < 0) continue;
-    const SectionBumps& s = sections[l.section];
-    const bool measured = l.bump < static_cast<int>(s.width.size()) && l.bump < static_cast<int>(s.relative.size());
-    steep += measured && s.width[l.bump] > 0 ? s.relative[l.bump] / s.width[l.bump] : 0.0;
-    ++count;
-  }
-  return count > 0 ? steep / count : 0.0;
-}
-
-bool spindleChain(const MuscleChain& c, const std::vector<SectionBumps>& sections, double ends, int minLinks,
-                  double steepness) {
-  std::vector<std::pair<int, double>> profile;  // (plane order, significance) of the real links
-  for (const ChainLink& l : c.links)
-    if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size()))
-      profile.emplace_back(sections[l.section].plane.order, sections[l.section].significance[l.bump]);
-  if (profile.empty() || chainSteepness(c, sections) < steepness) return false;
-  std::sort(profile.begin(), profile.end());
-  const int n = static_cast<int>(profile.size());
-  if (n < std::max(minLinks, 3)) return false;
-  for (int k = 1; k < n; ++k)
-    if (profile[k].first != profile[k - 1].first + 1) return false;
-  int peak = 0;
-  for (int k = 1; k < n; ++k)
-    if (profile[k].second > profile[peak].second) peak = k;
-  const double top = profile[peak].second;
-  if (!(top >= 1.0) || profile.front().second >= ends * top || profile.back().second >= ends * top) return false;
-  for (int k = 1; k <= peak; ++k)
-    if (profile[k].second < profile[k - 1].second) return false;
-  for (int k = peak + 1; k < n; ++k)
-    if (profile[k].second > profile[k - 1].second) return false;
-  return true;
 }
 
 // True when chain b is chain a's mirror twin: a limb chain of the same family on another limb whose real bumps' centres,
@@ -114,6 +71,9 @@ std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std
                                       const ChainFilterOptions& options, int minSections, ExtractionReport& rep) {
   const std::vector<CuttingPlane>& planes = cut.planes;
   const double evidenceScale = scale.evidenceScale();  // evidence in sections of the default spacing
+  detail::SpindleOptions spindleOptions;  // the closed-spindle cue (track_evidence.h)
+  spindleOptions.ends = options.spindleEnds, spindleOptions.minLength = options.spindleLength;
+  spindleOptions.steepness = options.spindleSteepness;
   std::vector<MuscleChain> kept;
   std::vector<std::pair<size_t, int>> dropped;  // limb chains the floors dropped: (chain, record index or -1)
   for (size_t ci = 0; ci < chains.size(); ++ci) {
@@ -128,10 +88,13 @@ std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std
         if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size())) {
           r.centres.push_back(planePoint(sections[l.section].plane, l.ellipse.center));
           r.significance.push_back(sections[l.section].significance[l.bump]);
+          const std::vector<double>& rel = sections[l.section].relative;
+          r.relative.push_back(l.bump < static_cast<int>(rel.size()) ? rel[l.bump] : 0.0);
+          r.planes.push_back(sections[l.section].plane.order);
+          r.radius.push_back(std::sqrt(l.ellipse.a * l.ellipse.b));
         }
-      r.steepness = chainSteepness(c, sections);
-      r.spindle = !detail::trunkFamily(c.family) &&
-                  spindleChain(c, sections, options.spindleEnds, options.spindleSections, options.spindleSteepness);
+      r.steepness = detail::chainSteepness(c, sections);
+      r.spindle = !detail::trunkFamily(c.family) && detail::closedSpindle(c, sections, spindleOptions);
       r.verdict = "kept";
       rep.chainRecords.push_back(std::move(r));
       record = &rep.chainRecords.back();
@@ -177,7 +140,10 @@ std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std
       drop(rep.droppedFlat, "flat");
       continue;
     }
-    if (c.confidence < options.minConfidence) {
+    // The confidence floor scores height and count, which a closed spindle is kept without (its shape is its evidence);
+    // a chain dropped by it may still be kept as a mirror twin.
+    if (c.confidence < options.minConfidence && !spindle) {
+      if (!trunk) dropped.emplace_back(ci, record ? static_cast<int>(record - rep.chainRecords.data()) : -1);
       drop(rep.droppedConfidence, "confidence");
       continue;
     }
@@ -205,7 +171,7 @@ std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std
       ++rep.twins;
       if (ri >= 0) {
         ChainRecord& r = rep.chainRecords[ri];
-        (r.verdict == "short" ? rep.droppedShort : rep.droppedFlat) -= 1;
+        (r.verdict == "short" ? rep.droppedShort : r.verdict == "flat" ? rep.droppedFlat : rep.droppedConfidence) -= 1;
         r.verdict = "twin";
       }
       kept.push_back(c);

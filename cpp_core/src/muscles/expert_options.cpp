@@ -80,7 +80,7 @@ const std::vector<ExpertField>& expertFields() {
     MYOSKIN_DOUBLE(filters.continuousEvidence),
     MYOSKIN_DOUBLE(filters.minRelativeTrunk),
     MYOSKIN_DOUBLE(filters.spindleEnds),
-    MYOSKIN_INT(filters.spindleSections),
+    MYOSKIN_DOUBLE(filters.spindleLength),
     MYOSKIN_DOUBLE(filters.spindleSteepness),
     MYOSKIN_DOUBLE(filters.twinReach),
     MYOSKIN_DOUBLE(scale.referenceLimbRadius),

@@ -80,9 +80,10 @@ void validateExtraction(const Character& character, const ExtractionOptions& opt
   require(options.filters.continuousEvidence >= 0, "filters.continuousEvidence must be >= 0");
   if (options.sectionBumps.trunkHarmonics < 0 || options.sectionBumps.trunkHarmonics > 16)
     throw InputError("trunkHarmonics must be in [0, 16], got " + std::to_string(options.sectionBumps.trunkHarmonics));
-  if (!(options.filters.spindleEnds >= 0.0 && options.filters.spindleEnds <= 1.0) || options.filters.spindleSections < 0 ||
+  if (!(options.filters.spindleEnds >= 0.0 && options.filters.spindleEnds <= 1.0) ||
+      !(options.filters.spindleLength >= 0.0 && std::isfinite(options.filters.spindleLength)) ||
       !(options.filters.spindleSteepness >= 0.0 && std::isfinite(options.filters.spindleSteepness)))
-    throw InputError("spindle options: spindleEnds must be in [0, 1], spindleSections >= 0 and spindleSteepness finite "
+    throw InputError("spindle options: spindleEnds must be in [0, 1], spindleLength and spindleSteepness finite "
                      "and >= 0");
   if (!(options.filters.twinReach >= 0.0 && std::isfinite(options.filters.twinReach)))
     throw InputError("twinReach must be finite and >= 0");
@@ -153,8 +154,10 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
     for (Muscle& m : result.muscles)
       containMuscleSurface(m.surface, std::max(3, options.surface.ringVertices), skin, options.surface.skinMargin);
   }
-  for (ChainRecord& r : rep.chainRecords)
+  for (ChainRecord& r : rep.chainRecords) {
     for (Vec3& p : r.centres) p = fromBody(p);
+    for (double& x : r.radius) x /= factor;
+  }
   rep.limbRadius = scale.limbRadius;
   rep.scale = factor;
   rep.excluded = surface.excluded;
