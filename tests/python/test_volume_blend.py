@@ -210,19 +210,23 @@ def knee_band_change(core, character, share, facing, hinge, shin, radius):
                                            np.asarray(character.bone_heads)[b], pose[b][:3, 3], 1.5 * radius)
 
 
-@pytest.mark.parametrize("name", ["soldier", "lowpoly", "biped 22"])
+@pytest.mark.parametrize("name", ["soldier", "lowpoly", "horse", "biped 22"])
 def test_shares_follow_the_body_not_its_coordinates(core, name):
     """computeDqsShare takes left-right from the skeleton's mirror plane and the facing from the feet (or the neck),
     not from the X axis: the same character turned a quarter about its vertical, and a Y-up import turned Z-up (as
     Blender's glTF import does), gets the same shares to 1e-9 and the same band figures (the reference bends' and the
     knee's at 120 degrees). Held out: Quaternius' soldier (Y up, facing +Z), the Godot low-poly male (Y up, facing +X
-    with Z across: the case the X rule bent the wrong way) and a generated biped (Z up, facing -Y)."""
+    with Z across: the case the X rule bent the wrong way), Quaternius' horse (front knee) and a generated biped (Z up,
+    facing -Y)."""
     if name == "soldier":
         character = core.load_character(shared(SOLDIER), require_weights=True)
         up, facing, hinge, shin = 1, (0.0, 0.0, 1.0), "UpperLeg.L", "LowerLeg.L"
     elif name == "lowpoly":
         character = core.load_character(shared(LOWPOLY), require_weights=True)
         up, facing, hinge, shin = 1, (1.0, 0.0, 0.0), "thigh.L", "shin.L"
+    elif name == "horse":  # no feet below its legs' last bones: the facing from the neck
+        character = core.load_character(shared("characters/quaternius_horse/horse.glb"), require_weights=True)
+        up, facing, hinge, shin = 1, (0.0, 0.0, 1.0), "FrontUpperLeg.L", "FrontLowerLeg.L"
     else:
         character, _truth = core.make_synthetic_body(seed=22)
         up, facing, hinge, shin = 2, (0.0, -1.0, 0.0), "thigh.L", "shin.L"
