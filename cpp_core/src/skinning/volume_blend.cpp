@@ -177,10 +177,12 @@ BodyFrame bodyFrame(const Character& body, const Skeleton& joined, const std::ve
   const Skeleton& skeleton = body.skeleton;
   const int nb = skeleton.numBones();
   Vec3 across = Vec3::UnitX(), c;
-  {
+  try {
     Vec3 n;
     if (skeletonMirrorPlane(makeCuttingPlanes(body, roles), c, n) && n.allFinite() && n.norm() > 0.5)
       across = n.normalized();
+  } catch (const InputError&) {
+    // no planes (a skin too small for the plane spacing's floor): the conventions' X
   }
   if (across.x() < 0.0) across = -across;  // the conventions' sign, turned below by the feet or the neck
   Vec3 limbs = Vec3::Zero();
@@ -202,7 +204,7 @@ BodyFrame bodyFrame(const Character& body, const Skeleton& joined, const std::ve
     return d.norm() > 0.0 ? Vec3(d.normalized()) : Vec3(Vec3::Zero());
   };
   // Votes along left x up: each foot (a bone hanging from a downward limb bone, lying along the ground) by its
-  // direction; without feet, the neck bones by theirs. A vote under half a bone's length along the axis is none.
+  // direction; without feet, the neck bones by theirs. A sum of unit directions under 0.5 along the axis is no vote.
   const Vec3 ahead = f.left.cross(f.up);
   double feet = 0.0, neck = 0.0;
   for (int b = 0; b < nb; ++b) {
