@@ -337,3 +337,40 @@ TEST(VolumeBlend, BadInputToTheSharesIsRejected) {
   w.joints(0, 0) = c.skeleton.numBones();
   EXPECT_FALSE(inputErrorOf([&] { computeDqsShare(c.skeleton, w, c.mesh); }).empty());
 }
+
+TEST(VolumeBlend, SharesFollowTheBodyNotItsCoordinates) {
+  // The body frame comes from the skeleton (mirror plane, feet), not from the X axis: a held-out generated biped (Z up,
+  // facing -Y) turned a quarter about its vertical (X then points front-back) or about X (Z up -> -Y up) gets the
+  // same shares, the same band changes and the same flexion axes, turned.
+  SyntheticBodyOptions bo;
+  bo.seed = 25;
+  bo.muscleScale = 0.0;
+  const Character c = makeSyntheticBody(bo).character;
+  std::vector<JointVolumeBlend> joints;
+  const Eigen::VectorXd share = computeDqsShare(c.skeleton, c.weights, c.mesh, {}, &joints);
+  ASSERT_GE(joints.size(), 4u);
+  ASSERT_GT(share.mean(), 0.0);  // a real mix of the two blends, so the comparison can fail
+  ASSERT_LT(share.mean(), 1.0);
+  const Mat3 quarterAboutZ = Eigen::AngleAxisd(kPi / 2, Vec3::UnitZ()).toRotationMatrix().array().round().matrix();
+  const Mat3 quarterAboutX = Eigen::AngleAxisd(kPi / 2, Vec3::UnitX()).toRotationMatrix().array().round().matrix();
+  for (const Mat3& r : {quarterAboutZ, quarterAboutX}) {
+    Character t = c;
+    t.mesh.vertices = c.mesh.vertices * r.transpose();
+    for (Bone& b : t.skeleton.bones) {
+      b.head = r * b.head;
+      b.tail = r * b.tail;
+      b.rest.topRows<3>() = r * b.rest.topRows<3>();
+    }
+    std::vector<JointVolumeBlend> turned;
+    const Eigen::VectorXd turnedShare = computeDqsShare(t.skeleton, t.weights, t.mesh, {}, &turned);
+    EXPECT_LE((turnedShare - share).cwiseAbs().maxCoeff(), 1e-9);
+    ASSERT_EQ(turned.size(), joints.size());
+    for (size_t j = 0; j < joints.size(); ++j) {
+      EXPECT_EQ(turned[j].bone, joints[j].bone);
+      EXPECT_NEAR(turned[j].share, joints[j].share, 1e-9);
+      EXPECT_NEAR(turned[j].linearChange, joints[j].linearChange, 1e-9);
+      EXPECT_NEAR(turned[j].blendChange, joints[j].blendChange, 1e-9);
+      EXPECT_LE((turned[j].axis - r * joints[j].axis).norm(), 1e-9) << c.skeleton.bones[joints[j].bone].name;
+    }
+  }
+}

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import NEUTRAL, run_cli, shared
+from conftest import LOWPOLY, NEUTRAL, run_cli, shared
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "benchmarks"))
 import skin_quality  # noqa: E402
@@ -171,3 +171,81 @@ def test_held_out_generated_bipeds_keep_preserve_volumes_figures(core, seed):
         assert r["crossings_myoskin_vb"] <= r["crossings_myoskin_pv"], label
     for label in ("elbow flexion", "knee flexion"):
         assert rows[label]["lbs"] < -0.2 and abs(rows[label]["myoskin_vb"]) <= 0.5 * abs(rows[label]["lbs"]), label
+
+
+# ------------------------------------------------------------------------------------------------
+# The body's own frame: the same shares however the character is turned
+# ------------------------------------------------------------------------------------------------
+
+def turned(core, character, rotation):
+    """The character turned by the 3 by 3 `rotation` about the origin (skin, bones, rest matrices; same weights)."""
+    r4 = np.eye(4)
+    r4[:3, :3] = rotation
+    return core.character_from_arrays(
+        character.name, np.asarray(character.vertices) @ rotation.T, np.asarray(character.triangles),
+        list(character.bone_names), np.asarray(character.bone_parents), np.asarray(character.bone_heads) @ rotation.T,
+        np.asarray(character.bone_tails) @ rotation.T, r4 @ np.asarray(character.bone_rest),
+        np.asarray(character.weight_joints), np.asarray(character.weight_values))
+
+
+def quarter_turn(axis):
+    """Rotation by 90 degrees about a coordinate axis (0, 1, 2): exact in floating point."""
+    r = np.zeros((3, 3))
+    i, j = (axis + 1) % 3, (axis + 2) % 3
+    r[axis, axis], r[j, i], r[i, j] = 1.0, 1.0, -1.0
+    return r
+
+
+def knee_band_change(core, character, share, facing, hinge, shin, radius):
+    """Band change (1.5 `radius`) of the knee bent 120 degrees backward under the volume blend of the skeleton weights
+    with `share`, in float64 (the skinner's per-vertex affine maps on the rest positions)."""
+    rest = np.asarray(character.vertices)
+    pose = skin_quality.bent_pose(character, shin, hinge, "backward", 120.0, facing)
+    skinner = core.Skinner(rest, character.weight_joints, character.weight_values, character.num_bones,
+                           dqs_share=share, rest_matrices=np.asarray(character.bone_rest))
+    maps = np.asarray(core.vertex_transforms(skinner, core.skeleton_transforms(character, pose)))
+    posed = np.einsum("vij,vj->vi", maps[:, :, :3], rest) + maps[:, :, 3]
+    b = list(character.bone_names).index(shin)
+    return skin_quality.band_volume_change(rest, posed, np.asarray(character.triangles),
+                                           np.asarray(character.bone_heads)[b], pose[b][:3, 3], 1.5 * radius)
+
+
+@pytest.mark.parametrize("name", ["soldier", "lowpoly", "horse", "biped 22"])
+def test_shares_follow_the_body_not_its_coordinates(core, name):
+    """computeDqsShare takes left-right from the skeleton's mirror plane and the facing from the feet (or the neck),
+    not from the X axis: the same character turned a quarter about its vertical, and a Y-up import turned Z-up (as
+    Blender's glTF import does), gets the same shares to 1e-9 and the same band figures (the reference bends' and the
+    knee's at 120 degrees). Held out: Quaternius' soldier (Y up, facing +Z), the Godot low-poly male (Y up, facing +X
+    with Z across: the case the X rule bent the wrong way), Quaternius' horse (front knee) and a generated biped (Z up,
+    facing -Y)."""
+    if name == "soldier":
+        character = core.load_character(shared(SOLDIER), require_weights=True)
+        up, facing, hinge, shin = 1, (0.0, 0.0, 1.0), "UpperLeg.L", "LowerLeg.L"
+    elif name == "lowpoly":
+        character = core.load_character(shared(LOWPOLY), require_weights=True)
+        up, facing, hinge, shin = 1, (1.0, 0.0, 0.0), "thigh.L", "shin.L"
+    elif name == "horse":  # no feet below its legs' last bones: the facing from the neck
+        character = core.load_character(shared("characters/quaternius_horse/horse.glb"), require_weights=True)
+        up, facing, hinge, shin = 1, (0.0, 0.0, 1.0), "FrontUpperLeg.L", "FrontLowerLeg.L"
+    else:
+        character, _truth = core.make_synthetic_body(seed=22)
+        up, facing, hinge, shin = 2, (0.0, -1.0, 0.0), "thigh.L", "shin.L"
+    share, joints = core.compute_dqs_share(character, with_joints=True)
+    share = np.asarray(share)
+    assert len(joints) >= 4, "too few joints measured"
+    assert 0.0 < share.mean() < 1.0  # a real mix of the two blends (the comparison can fail)
+    radius = joints[0]["radius"]
+    knee = knee_band_change(core, character, share, facing, hinge, shin, radius)
+    assert np.isfinite(knee)
+    for rotation in (quarter_turn(up), quarter_turn(0)):  # about the vertical; about X (Y up -> Z up)
+        other = turned(core, character, rotation)
+        turned_share, turned_joints = core.compute_dqs_share(other, with_joints=True)
+        assert np.abs(np.asarray(turned_share) - share).max() <= 1e-9
+        assert [j["bone"] for j in turned_joints] == [j["bone"] for j in joints]
+        for a, b in zip(joints, turned_joints):
+            for key in ("share", "linear_change", "dual_quat_change", "blend_change"):
+                assert abs(a[key] - b[key]) <= 1e-9, (a["bone"], key)
+            assert np.abs(rotation @ np.asarray(a["axis"]) - np.asarray(b["axis"])).max() <= 1e-9, a["bone"]
+        turned_knee = knee_band_change(core, other, np.asarray(turned_share), rotation @ np.asarray(facing), hinge, shin,
+                                       radius)
+        assert abs(turned_knee - knee) <= 1e-9, (knee, turned_knee)

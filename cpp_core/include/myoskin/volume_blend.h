@@ -44,9 +44,12 @@ struct VolumeBlendOptions {
   // band could not be measured the share stays 1.
   double unblendedShare = 0.0;
   // The body's up axis; zero = automatic: against the sum of the limb bones (legs point down; arms sideways or down),
-  // in the plane across X; without limbs +Y when the skin is taller along Y than along Z (glTF), else +Z (Blender).
-  // The left-right axis is X in both conventions; facing = left x up, turned where the feet (bones hanging from a
-  // downward limb bone and lying along the ground) point (glTF +Z, Blender -Y; an armature turned in its object too).
+  // across the left-right axis; without limbs +Y when the skin is taller along Y than along Z (glTF), else +Z
+  // (Blender). The left-right axis is the normal of the skeleton's mirror plane (skeletonMirrorPlane; X without one),
+  // facing = left x up, turned where the feet (bones hanging from a downward limb bone and lying along the ground)
+  // point, without feet where the neck leans (a horse's), else with +X the left. So the shares follow the body, not its
+  // coordinates: turned in space or imported Y-up or Z-up, a character gets the same shares (to 1e-9 for quarter
+  // turns; band changes are measured in float64).
   Vec3 up = Vec3::Zero();
 };
 

@@ -19,6 +19,7 @@ namespace myoskin {
 namespace {
 
 constexpr int kShareSteps = 100;  // shares tried: 0, 1/100, ..., 1
+constexpr double kRounding = 1e-9;  // band changes this small are rounding (a band no bend changes keeps share 1)
 
 // ============================================================================
 // Checks
@@ -59,6 +60,16 @@ double coneVolume(const Points& p, const Triangles& tris, const Vec3& apex) {
     v += a.dot(b.cross(c));
   }
   return v / 6.0;
+}
+
+// #V by 3: each row of `rest` moved by its vertex's affine map (#V by 12, row-major 3 by 4).
+Points applyMaps(const VertexTransforms& maps, const Points& rest) {
+  Points out(rest.rows(), 3);
+  for (Eigen::Index v = 0; v < rest.rows(); ++v)
+    for (int r = 0; r < 3; ++r)
+      out(v, r) = maps(v, 4 * r) * rest(v, 0) + maps(v, 4 * r + 1) * rest(v, 1) + maps(v, 4 * r + 2) * rest(v, 2) +
+                  maps(v, 4 * r + 3);
+  return out;
 }
 
 // The joint at bone c's head: its band (bandRadius body limb radii) and share at the reference flexion about
@@ -118,10 +129,14 @@ bool measureJoint(const Skeleton& skeleton, const SkinWeights& w, const Mesh& sk
   std::vector<Mat4> transforms(nb, Mat4::Identity());
   for (int b = 0; b < nb; ++b)
     if (inSubtree[b]) transforms[b] = turn;
-  Points lin, dq;
-  skinner.deform(transforms, lin);
+  // In float64 (the skinner's per-vertex affine maps on the float64 rest positions): the shares then depend on the
+  // body, not on how its coordinates round (a character turned in space gets the same shares to 1e-9).
+  VertexTransforms maps;
+  skinner.vertexTransforms(transforms, maps);
+  const Points lin = applyMaps(maps, rest);
   skinner.setOptions(dqOptions);
-  skinner.deform(transforms, dq);
+  skinner.vertexTransforms(transforms, maps);
+  const Points dq = applyMaps(maps, rest);
   std::vector<double> change(kShareSteps + 1);
   for (int k = 0; k <= kShareSteps; ++k) {
     const double s = static_cast<double>(k) / kShareSteps;
@@ -129,10 +144,10 @@ bool measureJoint(const Skeleton& skeleton, const SkinWeights& w, const Mesh& sk
     change[k] = (coneVolume(p, tris, joint) - v0) / std::abs(v0);
   }
   // The largest share whose |change| is at most the smallest |change| of any share or keepTolerance x |linear's
-  // change| (dual quaternions where they keep the volume well enough or lose it anyway).
+  // change| or kRounding (dual quaternions where they keep the volume well enough or lose it anyway).
   double smallest = std::abs(change[0]);
   for (double x : change) smallest = std::min(smallest, std::abs(x));
-  const double allowed = std::max(smallest, o.keepTolerance * std::abs(change[0]));
+  const double allowed = std::max({smallest, o.keepTolerance * std::abs(change[0]), kRounding});
   int best = kShareSteps;
   while (best > 0 && std::abs(change[best]) > allowed) --best;
   out.share = static_cast<double>(best) / kShareSteps;
@@ -141,6 +156,68 @@ bool measureJoint(const Skeleton& skeleton, const SkinWeights& w, const Mesh& sk
   out.dualQuatChange = change[kShareSteps];
   out.blendChange = change[best];
   return true;
+}
+
+// ============================================================================
+// Body frame
+// ============================================================================
+
+struct BodyFrame {
+  Vec3 up, left, facing;  // unit, orthogonal; facing = left x up
+};
+
+// The body's up, left-right and facing axes from its skeleton and skin, whichever way it was modelled or imported:
+// left-right = the normal of the skeleton's mirror plane (skeletonMirrorPlane; X, the mirror plane X = 0 of glTF and
+// Blender, without one); up = `givenUp` if non-zero, else against the limbs (the sum of the limb bones across the
+// left-right axis: legs down, arms sideways or down), else the taller of +Y and +Z; facing = left x up, its sign
+// where the feet point (bones hanging from a downward limb bone and lying along the ground), else where the neck
+// leans (a horse's neck reaches forward), else +X as the left (glTF and Blender: the left side at +X).
+BodyFrame bodyFrame(const Character& body, const Skeleton& joined, const std::vector<BoneRole>& roles,
+                    const Vec3& givenUp) {
+  const Skeleton& skeleton = body.skeleton;
+  const int nb = skeleton.numBones();
+  Vec3 across = Vec3::UnitX(), c;
+  try {
+    Vec3 n;
+    if (skeletonMirrorPlane(makeCuttingPlanes(body, roles), c, n) && n.allFinite() && n.norm() > 0.5)
+      across = n.normalized();
+  } catch (const InputError&) {
+    // no planes (a skin too small for the plane spacing's floor): the conventions' X
+  }
+  if (across.x() < 0.0) across = -across;  // the conventions' sign, turned below by the feet or the neck
+  Vec3 limbs = Vec3::Zero();
+  for (int b = 0; b < nb; ++b)
+    if (roles[b] == BoneRole::Limb) limbs += joined.bones[b].tail - joined.bones[b].head;
+  limbs -= limbs.dot(across) * across;
+  const Vec3 extent = body.mesh.vertices.colwise().maxCoeff() - body.mesh.vertices.colwise().minCoeff();
+  BodyFrame f;
+  f.up = extent.y() >= extent.z() ? Vec3::UnitY() : Vec3::UnitZ();
+  if (givenUp.squaredNorm() > 0.0)
+    f.up = givenUp.normalized();
+  else if (limbs.norm() > 1e-9)
+    f.up = -limbs.normalized();
+  f.left = across - across.dot(f.up) * f.up;
+  if (f.left.norm() < 1e-6) f.left = f.up.unitOrthogonal();  // an up given along the mirror normal
+  f.left.normalize();
+  auto unit = [&](int b) {
+    const Vec3 d = joined.bones[b].tail - joined.bones[b].head;
+    return d.norm() > 0.0 ? Vec3(d.normalized()) : Vec3(Vec3::Zero());
+  };
+  // Votes along left x up: each foot (a bone hanging from a downward limb bone, lying along the ground) by its
+  // direction; without feet, the neck bones by theirs. A sum of unit directions under 0.5 along the axis is no vote.
+  const Vec3 ahead = f.left.cross(f.up);
+  double feet = 0.0, neck = 0.0;
+  for (int b = 0; b < nb; ++b) {
+    if (roles[b] == BoneRole::Neck) neck += unit(b).dot(ahead);
+    const int p = skeleton.bones[b].parent;
+    if (p < 0 || roles[p] != BoneRole::Limb) continue;
+    const Vec3 db = unit(b), dp = unit(p);
+    if (dp.dot(f.up) < -0.5 && db.squaredNorm() > 0.0 && std::abs(db.dot(f.up)) < 0.7) feet += db.dot(ahead);
+  }
+  const double vote = std::abs(feet) >= 0.5 ? feet : std::abs(neck) >= 0.5 ? neck : 0.0;
+  if (vote < 0.0) f.left = -f.left;
+  f.facing = f.left.cross(f.up);
+  return f;
 }
 
 }  // namespace
@@ -159,9 +236,6 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
   for (int v = 0; v < nv; ++v)
     for (int k = 0; k < w.influences(); ++k)
       if (w.joints(v, k) >= 0) total[v] += w.weights(v, k);
-  // Body frame: up unless given: against the limbs (the sum of the limb bones, legs down, arms sideways or down), else
-  // the taller of +Y (glTF) and +Z (Blender); the left-right axis X (the mirror plane X = 0 of glTF and Blender alike);
-  // facing = left x up, its sign where the feet point (glTF +Z, Blender -Y; +X is then the left).
   Character body;
   body.mesh = skin;
   body.skeleton = skeleton;
@@ -170,29 +244,8 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
   const std::vector<BoneRole> roles = characterBoneRoles(body);
   const std::vector<char> twist = twistSplits(joined, w);  // on the joined tails, as importers differ
   const double limbRadius = bodyLimbRadius(body, roles);
-  Vec3 limbs = Vec3::Zero();
-  for (int b = 0; b < nb; ++b)
-    if (roles[b] == BoneRole::Limb) limbs += joined.bones[b].tail - joined.bones[b].head;
-  limbs.x() = 0.0;
-  const Vec3 extent = skin.vertices.colwise().maxCoeff() - skin.vertices.colwise().minCoeff();
-  Vec3 up = extent.y() >= extent.z() ? Vec3::UnitY() : Vec3::UnitZ();
-  if (options.up.squaredNorm() > 0.0)
-    up = options.up.normalized();
-  else if (limbs.norm() > 1e-9)
-    up = -limbs.normalized();
-  Vec3 left = (Vec3::UnitX() - Vec3::UnitX().dot(up) * up).normalized();
-  // The feet point forward: a bone hanging from a downward limb bone that itself points along the ground (a foot)
-  // votes for the facing's sign (an armature rotated in its object, as Blender's glTF import leaves some, faces -Z).
-  double feet = 0.0;
-  for (int b = 0; b < nb; ++b) {
-    const int p = skeleton.bones[b].parent;
-    if (p < 0 || roles[p] != BoneRole::Limb) continue;
-    const Vec3 db = joined.bones[b].tail - joined.bones[b].head, dp = joined.bones[p].tail - joined.bones[p].head;
-    if (db.norm() > 0.0 && dp.norm() > 0.0 && dp.normalized().dot(up) < -0.5 && std::abs(db.normalized().dot(up)) < 0.7)
-      feet += db.normalized().dot(left.cross(up));
-  }
-  if (feet < 0.0) left = -left;
-  const Vec3 facing = left.cross(up);
+  const BodyFrame frame = bodyFrame(body, joined, roles, options.up);
+  const Vec3 up = frame.up, left = frame.left, facing = frame.facing;
   auto direction = [&](int b) { return Vec3((joined.bones[b].tail - joined.bones[b].head).normalized()); };
   std::vector<char> inSubtree(nb);
   Eigen::VectorXd blend(nv);
