@@ -235,6 +235,13 @@ double numberOption(const Args& args, const std::string& name, double fallback) 
   }
 }
 
+// A whole-number option (a count): refuses fractions and values beyond int's range.
+int countOption(const Args& args, const std::string& name, int fallback) {
+  const double v = numberOption(args, name, fallback);
+  if (v != std::floor(v) || std::abs(v) > 1e9) throw InputError(name + " needs a whole number, got '" + args.options.at(name) + "'");
+  return static_cast<int>(v);
+}
+
 // Expert extraction options from a JSON file: an object {KEY: number or bool} (expertOptions' keys).
 void readExpertFile(const std::string& path, ExtractionOptions& options) {
   std::ifstream in(path);
@@ -289,9 +296,9 @@ int cmdExtract(const Args& args) {
   if (options.scale.spacing < 0) throw InputError("--spacing must be >= 0 limb radii (0 = automatic)");
   options.filters.minConfidence = numberOption(args, "--min-confidence", options.filters.minConfidence);
   if (options.filters.minConfidence < 0 || options.filters.minConfidence > 1) throw InputError("--min-confidence must be in [0, 1]");
-  options.link.minSections = static_cast<int>(numberOption(args, "--min-sections", options.link.minSections));
+  options.link.minSections = countOption(args, "--min-sections", options.link.minSections);
   if (options.link.minSections < 1) throw InputError("--min-sections must be >= 1");
-  options.maxPerRegion = static_cast<int>(numberOption(args, "--max-per-region", 0));
+  options.maxPerRegion = countOption(args, "--max-per-region", 0);
   if (options.maxPerRegion < 0) throw InputError("--max-per-region must be >= 0 (0 = all)");
   options.ends.jointWrapFraction = numberOption(args, "--joint-wrap", options.ends.jointWrapFraction);
   if (!(options.ends.jointWrapFraction >= 0)) throw InputError("--joint-wrap must be >= 0 (0 = straight lines)");
@@ -339,9 +346,9 @@ int deformAnchored(const Args& args, const Character& c, const PoseSequence& pos
   const std::vector<Muscle> muscles =
       args.options.count("--muscles") ? readMusclesJson(args.options.at("--muscles")) : std::vector<Muscle>{};
   AnchoredSkinOptions ao;
-  ao.relaxIterations = static_cast<int>(numberOption(args, "--relax-iterations", ao.relaxIterations));
+  ao.relaxIterations = countOption(args, "--relax-iterations", ao.relaxIterations);
   if (ao.relaxIterations < 0) throw InputError("--relax-iterations must be >= 0");
-  ao.threads = static_cast<int>(numberOption(args, "--threads", 0));
+  ao.threads = countOption(args, "--threads", 0);
   if (ao.threads < 0) throw InputError("--threads must be >= 0 (0 = all cores)");
   const AnchoredComponents comps = deriveComponents(c.skeleton, muscles, c.mesh, c.weights);
   const AnchoredSkin skin(c.mesh, c.weights, comps, c.skeleton, ao);
@@ -372,7 +379,7 @@ struct BoundSkin {
 // --dq-scale); `flags` are the command's other allowed flags (a mistyped one must not pass silently).
 BoundSkin bindFromArgs(const Args& args, const std::string& command, const std::vector<std::string>& flags) {
   BoundSkin b;
-  b.options.threads = static_cast<int>(numberOption(args, "--threads", 0));
+  b.options.threads = countOption(args, "--threads", 0);
   if (b.options.threads < 0) throw InputError("--threads must be >= 0 (0 = all cores)");
   for (const std::string& f : args.flags)  // a mistyped mode must not fall back to linear skinning silently
     if (f != "--preserve-volume" && std::find(flags.begin(), flags.end(), f) == flags.end())
@@ -548,7 +555,7 @@ int cmdSimulate(const Args& args) {
       throw InputError("simulate: the sculpt " + path + " has " + std::to_string(sculpt.numVertices()) +
                        " vertices, the character " + std::to_string(c.mesh.numVertices()) +
                        " (write it with the character's vertex order, e.g. from `myoskin deform -o frame.obj`)");
-    sim.setSculpt(sculpt.vertices, static_cast<int>(numberOption(args, "--sculpt-frame", sim.firstFrame())));
+    sim.setSculpt(sculpt.vertices, countOption(args, "--sculpt-frame", sim.firstFrame()));
   }
   std::unique_ptr<SimulationState> stateIn;
   if (args.options.count("--state-in"))

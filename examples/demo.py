@@ -99,7 +99,7 @@ def main():
     for obj in bpy.context.selected_objects:
         obj.select_set(False)
     bpy.context.view_layer.objects.active = mesh_obj
-    assert bpy.ops.myoskin.extract_muscles(spacing=prefs.section_spacing,
+    assert bpy.ops.myoskin.extract_muscles(spacing=prefs.section_spacing_radii,
                                            min_sections=prefs.min_sections) == {'FINISHED'}
     state = arm_obj.myoskin
     muscles = muscle_io.state_to_core(arm_obj)

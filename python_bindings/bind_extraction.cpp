@@ -142,9 +142,10 @@ void bindExtraction(py::module_& m) {
             throw py::type_error("extract_muscles(): options must be a dict {key: value} of expert options");
           for (const auto& [k, v] : py::reinterpret_borrow<py::dict>(expert)) {
             const std::string key = py::str(k).cast<std::string>();
-            if (!py::isinstance<py::bool_>(v) && !py::isinstance<py::int_>(v) && !py::isinstance<py::float_>(v))
+            // Any real number (numpy scalars included; strings and None are not numbers here).
+            if (py::isinstance<py::str>(v) || v.is_none() || !PyNumber_Check(v.ptr()) || PyComplex_Check(v.ptr()))
               throw InputError("expert option " + key + " needs a number or a bool");
-            setExpertOption(o, key, v.cast<double>());
+            setExpertOption(o, key, py::float_(py::reinterpret_borrow<py::object>(v)).cast<double>());
           }
         }
         if (!vertexMask.is_none()) o.vertexMask = toMask(vertexMask, "vertex_mask");

@@ -16,8 +16,8 @@ the armature's space (each mesh through its own transform), concatenated and wel
 that meet at open boundaries join (combined_character). Extraction sees that surface in the "extraction
 space": the armature's space times the armature object's (uniform) world scale, i.e. at its size in the
 scene, with the armature object's rotation and translation left out (they change nothing). So an FBX/Mixamo
-export whose armature object is scaled x100 or x0.01 is analysed at its real size, and distances given to
-extraction (section spacing) are scene units. Muscles come back to the armature's space by 1/scale.
+export whose armature object is scaled x100 or x0.01 is analysed at its real size (extraction's options are
+relative to the body: section spacing in limb radii). Muscles come back to the armature's space by 1/scale.
 
 Only this module (and the operators/panels) touch bpy; the algorithms live in the core.
 """

@@ -12,7 +12,8 @@ ADDON_PACKAGE = __package__  # "myoskin", or "bl_ext.<repo>.myoskin" when instal
 class MyoskinPreferences(bpy.types.AddonPreferences):
     bl_idname = ADDON_PACKAGE
 
-    section_spacing: FloatProperty(
+    # Named for its unit: preferences saved when the spacing was in metres keep that value under the old name, unused.
+    section_spacing_radii: FloatProperty(
         name="Section Spacing", description="Distance between cutting planes during extraction, in limb radii "
                                             "(the body's median limb radius; 0 = automatic: 1/80 of the "
                                             "character's largest extent)",
@@ -36,7 +37,7 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
         draw_core_status(layout)
         col = layout.column(align=True)
         col.label(text="Extraction")
-        col.prop(self, "section_spacing")
+        col.prop(self, "section_spacing_radii")
         col.prop(self, "min_confidence")
         col.prop(self, "min_sections")
         col = layout.column(align=True)
@@ -47,7 +48,7 @@ class MyoskinPreferences(bpy.types.AddonPreferences):
 
 class _Defaults:
     """The preference defaults, for scripts run without the add-on enabled."""
-    section_spacing = 0.0
+    section_spacing_radii = 0.0
     min_confidence = 0.5
     min_sections = 3
     joints_per_muscle = 4

@@ -366,7 +366,8 @@ LIMITS = (
 
 class MyoskinSceneSettings(bpy.types.PropertyGroup):
     """The sidebar's tool settings (what the buttons pass to the operators)."""
-    spacing: FloatProperty(name="Section Spacing", description="Distance between cutting planes in limb radii "
+    # Named for its unit: a .blend saved when the spacing was in metres keeps that value under the old name, unused.
+    spacing_radii: FloatProperty(name="Section Spacing", description="Distance between cutting planes in limb radii "
                            "(the body's median limb radius; 0 = automatic: 1/80 of the character's extent)",
                            default=0.0, min=0.0, soft_max=4.0)
     min_confidence: FloatProperty(name="Min Confidence", description="Drop muscles less significant than this",

@@ -122,7 +122,7 @@ def test_preferences_defaults():
     for name in names:
         assert abs(getattr(prefs, name) - getattr(fallback, name)) < 1e-6, (name, getattr(prefs, name))
     # the documented values
-    assert prefs.section_spacing == 0.0  # automatic, as the core's default
+    assert prefs.section_spacing_radii == 0.0  # automatic, as the core's default
     assert prefs.joints_per_muscle == 4 and abs(prefs.bulge_factor - 1.0) < 1e-9 and prefs.min_sections == 3
     assert addon_module("preferences").get_preferences().joints_per_muscle == 4
 

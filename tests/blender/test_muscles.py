@@ -288,6 +288,36 @@ def test_add_muscle_from_faces_and_group():
                                         vertex_group=empty.name)
 
 
+def test_add_muscle_from_region_without_a_bump_adds_nothing():
+    """On an arm whose bellies are a fifth of the default, extraction keeps some as closed spindles (their shape is
+    their evidence) without a forced region; a marked region with no bump still says so instead of adding one of
+    those."""
+    clear_scene()
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=0, muscle_scale=0.2) == {'FINISHED'}
+    skin = bpy.context.view_layer.objects.active
+    arm = skin.parent
+    assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
+    state = arm.myoskin
+    n = len(state.muscles)
+    assert n > 0  # faint bellies found as spindles: what a forced region must not pick up
+    io = module("muscle_io")
+    centres = np.concatenate([np.asarray(io.item_to_core(arm, m).section_centers) for m in state.muscles])
+    co = mesh_co(skin)
+    # the end slab of the arm (5 % of its length) farther from every extracted muscle: the hand's end, no belly
+    axis = int(np.argmax(co.max(axis=0) - co.min(axis=0)))
+    lo, hi = co[:, axis].min(), co[:, axis].max()
+    slabs = [co[:, axis] < lo + 0.05 * (hi - lo), co[:, axis] > hi - 0.05 * (hi - lo)]
+    far = [np.linalg.norm(co[s][:, None] - centres[None], axis=2).min() for s in slabs]
+    region = slabs[int(np.argmax(far))]
+    faces = np.empty(len(skin.data.polygons) * 3, dtype=np.int32)
+    skin.data.polygons.foreach_get("vertices", faces)
+    sel = region[faces.reshape(-1, 3)].all(axis=1)
+    assert sel.any()
+    skin.data.polygons.foreach_set("select", sel)
+    assert "No bump found" in operator_error(bpy.ops.myoskin.add_muscle_from_region, source='FACES')
+    assert len(state.muscles) == n
+
+
 # ------------------------------------------------------------------------------------------------
 # Locators and wrap settings
 # ------------------------------------------------------------------------------------------------

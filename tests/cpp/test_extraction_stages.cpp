@@ -61,10 +61,17 @@ TEST(Stages, EachStageAloneGivesTheOneShotResult) {
                                                                o.link.minSections, rep);
     EXPECT_EQ(rep.droppedShort, shot.report.droppedShort);
     EXPECT_EQ(rep.droppedFlat, shot.report.droppedFlat);
+    EXPECT_EQ(rep.droppedConfidence, shot.report.droppedConfidence);
     EXPECT_EQ(rep.spindles, shot.report.spindles);
     EXPECT_EQ(rep.twins, shot.report.twins);
+    ASSERT_EQ(rep.chainRecords.size(), shot.report.chainRecords.size());
+    ASSERT_FALSE(rep.chainRecords.empty());
+    for (size_t i = 0; i < rep.chainRecords.size(); ++i)  // every chain's verdict (kept, spindle, twin, dropped why)
+      EXPECT_EQ(rep.chainRecords[i].verdict, shot.report.chainRecords[i].verdict) << i;
     const std::vector<Muscle> muscles =
         stages::assembleMuscles(kept, found.sections, surface.body, cut.roles, o.ends, o.maxPerRegion, rep);
+    EXPECT_EQ(rep.droppedOverlap, shot.report.droppedOverlap);
+    EXPECT_EQ(rep.droppedRegionLimit, shot.report.droppedRegionLimit);
     ASSERT_EQ(muscles.size(), shot.muscles.size()) << bodyKindName(kind);
     for (size_t i = 0; i < muscles.size(); ++i) {  // the same muscles, back in the character's units bit for bit
       EXPECT_EQ(muscles[i].name, shot.muscles[i].name);

@@ -166,18 +166,18 @@ TEST(VariedCharacters, HeldOutRecallAndPrecision) {
     recall /= seeds, precision /= seeds;
     std::printf("held-out %s seeds %u-%u: mean recall %.3f, precision %.3f; %d chains kept as closed spindles, %d as "
                 "mirror twins\n", bodyKindName(kind), kFirstHeldOut, kLastHeldOut, recall, precision, spindles, twins);
-    EXPECT_GT(spindles, 0) << bodyKindName(kind);  // the faint bellies the floors drop (ExtractionOptions::spindleEnds)
-    if (kind == BodyKind::Biped) EXPECT_GT(twins, 0);  // ... and their mirror twins (ExtractionOptions::twinReach)
+    EXPECT_GT(spindles, 0) << bodyKindName(kind);  // the faint bellies the floors drop (ChainFilterOptions::spindleEnds)
+    if (kind == BodyKind::Biped) EXPECT_GT(twins, 0);  // ... and their mirror twins (ChainFilterOptions::twinReach)
     // Measured against the visible length (measureExtraction: where a muscle raises the skin by at least half its peak
     // relief, TrueMuscle::relief): biped recall 0.931, precision 0.960; quadruped recall 0.984, precision 0.977 (before
     // the closed spindle needed no significant peak, was measured in its bumps' radii instead of 4 planes and skipped the
     // confidence floor, track_evidence.h: biped 0.868 / 0.960, quadruped 0.969 / 0.977; with
-    // ExtractionOptions::spindleEnds 0.75 and spindleSteepness 0.05: biped 0.826 / 0.958, quadruped 0.953 / 0.977; before
+    // ChainFilterOptions::spindleEnds 0.75 and spindleSteepness 0.05: biped 0.826 / 0.958, quadruped 0.953 / 0.977; before
     // the torso and mirrored limb frames followed the body's own left-right axis, skeletonMirrorPlane: biped 0.819 /
     // 0.957, quadruped 0.945 / 0.975; without
     // the mirror twins, ExtractionOptions::twinReach: biped 0.785 / 0.954, quadruped the same). Against the whole true
     // length, as before TrueMuscle::relief: biped 0.722 / 0.880, quadruped 0.883 / 0.908 (before the spindle rule,
-    // ExtractionOptions::spindleEnds: biped 0.653 / 0.911, quadruped 0.828 / 0.899). The target is 0.9 for
+    // ChainFilterOptions::spindleEnds: biped 0.653 / 0.911, quadruped 0.828 / 0.899). The target is 0.9 for
     // both: asserted where it holds, printed where it does not, and the floors below lie just under what was measured.
     if (recall < 0.9) std::printf("SHORT OF TARGET: %s mean recall %.3f < 0.9\n", bodyKindName(kind), recall);
     if (precision < 0.9) std::printf("SHORT OF TARGET: %s mean precision %.3f < 0.9\n", bodyKindName(kind), precision);

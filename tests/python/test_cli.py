@@ -76,7 +76,7 @@ def test_extract_expert_options(tmp_path):
 
 
 def test_extract_spacing_in_limb_radii(tmp_path):
-    """--spacing is in limb radii: the same number of planes at any scale of the character."""
+    """--spacing is in limb radii: half the spacing cuts twice the planes; a value in metres is refused."""
     r = run_cli("generate", "arm", "-o", str(tmp_path), "--seed", "1")
     assert r.returncode == 0, r.stderr
     arm = str(tmp_path / "arm.obj")
@@ -86,6 +86,9 @@ def test_extract_spacing_in_limb_radii(tmp_path):
         assert r.returncode == 0, r.stderr
         planes.append(int(r.stdout.split(" planes,")[0].split("(")[-1]))
     assert planes[1] > planes[2] > 0 and 1.6 < planes[1] / planes[2] < 2.4, planes  # twice as many at half
+    # 2 cm, as the option was given before it took limb radii: refused, not tens of thousands of planes
+    r = run_cli("extract", arm, "-o", str(tmp_path / "m.json"), "--no-surfaces", "--spacing", "0.02")
+    assert r.returncode != 0 and "limb radii" in r.stderr, r.stderr
 
 
 def _write_obj(path, vertices, faces):

@@ -144,6 +144,8 @@ def test_bad_input_raises_value_error(core, arm):
         core.extract_muscles(character, vertex_mask=np.ones(3, dtype=bool))
     with pytest.raises(ValueError, match="spacing"):
         core.extract_muscles(character, spacing=-1.0)
+    with pytest.raises(ValueError, match="in limb radii"):  # a value in metres
+        core.extract_muscles(character, spacing=0.02)
     with pytest.raises(ValueError, match="sectionBumps.weakFraction"):
         core.extract_muscles(character, options={"sectionBumps.weakFraction": 0.0})
     with pytest.raises(ValueError, match="filters.minRelative"):
@@ -375,6 +377,13 @@ def test_old_expert_keywords_raise_type_error_bad_values_value_error(core, arm):
         core.extract_muscles(character, options={"link.maxGap": 2.5})
     with pytest.raises(ValueError, match="number or a bool"):
         core.extract_muscles(character, options={"filters.minEvidence": "high"})
+    with pytest.raises(ValueError, match="number or a bool"):
+        core.extract_muscles(character, options={"filters.minEvidence": None})
+    # numpy scalars are numbers (as read from an array of settings): the same muscles as the Python numbers give
+    plain, _ = core.extract_muscles(character, build_surfaces=False, options={"link.maxGap": 2, "filters.minEvidence": 5.0})
+    typed, _ = core.extract_muscles(character, build_surfaces=False,
+                                    options={"link.maxGap": np.int64(2), "filters.minEvidence": np.float32(5.0)})
+    assert [m.name for m in typed] == [m.name for m in plain]
     with pytest.raises(TypeError, match="dict"):
         core.extract_muscles(character, options=[("filters.minEvidence", 1.0)])
     for bad in (dict(min_confidence=1.5), dict(min_sections=0), dict(max_per_region=-1), dict(joint_wrap=-0.1),

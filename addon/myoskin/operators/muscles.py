@@ -191,7 +191,8 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
     vertex_group: StringProperty(name="Vertex Group", description="With Limit To = Vertex Group")
     expert: StringProperty(name="Expert Options", description="Expert tuning, not for everyday use: a JSON object "
                            "{key: value} of the core's extraction options (e.g. {\"filters.minEvidence\": 7}; "
-                           "the keys: Python _core.extraction_options())", default="")
+                           "the keys: Python _core.extraction_options())", default="",
+                           options={'SKIP_SAVE'})  # never reused from the last call: tuning is asked for each time
 
     def run(self, context):
         prefs = get_preferences(context)
@@ -202,7 +203,7 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
         for skin in skins:
             blender_io.require_weights(skin, arm)
         overrides = checked_role_overrides(arm)
-        spacing = prefs.section_spacing if self.spacing < 0 else self.spacing
+        spacing = prefs.section_spacing_radii if self.spacing < 0 else self.spacing
         min_sections = prefs.min_sections if self.min_sections < 0 else self.min_sections
         min_confidence = prefs.min_confidence if self.min_confidence < 0 else self.min_confidence
         label = character_label(skins, arm)
@@ -327,16 +328,25 @@ class MYOSKIN_OT_add_muscle_from_region(_MuscleOperator, bpy.types.Operator):
         scale = blender_io.armature_scale(arm)
         character = blender_io.scaled_character(combined.character, scale)  # the extraction space
         prefs = get_preferences(context)
-        # min_confidence 1: only the forced muscle survives (forced muscles are always kept).
+        # Only the forced muscle survives: min_confidence 1 drops the others, and the cues that keep a chain below
+        # the floors without its confidence (closed spindles, mirror twins) are off.
         muscles, report = core_loader.core().extract_muscles(
-            character, spacing=prefs.section_spacing, forced_regions=[region], min_confidence=1.0,
-            min_sections=max(2, prefs.min_sections // 2), bone_roles=checked_role_overrides(arm))
-        if not muscles:
+            character, spacing=prefs.section_spacing_radii, forced_regions=[region], min_confidence=1.0,
+            min_sections=max(2, prefs.min_sections // 2), bone_roles=checked_role_overrides(arm),
+            options={"filters.spindleEnds": 0.0, "filters.twinReach": 0.0})
+        if not muscles or report["forced"] < 1:
             raise ValueError("No bump found in the marked region: mark a larger region across the muscle "
                              "(it needs several cutting planes)")
         vertices = np.asarray(character.vertices)[region]
-        best = max(muscles, key=lambda m: int((np.linalg.norm(
-            vertices[:, None, :] - np.asarray(m.section_centers)[None, :, :], axis=2).min(axis=1) < 0.05).sum()))
+
+        def overlap(m):
+            """Region vertices within its sections' radius of the muscle's centre line (closest section)."""
+            centres = np.asarray(m.section_centers)
+            reach = 2.0 * np.sqrt(np.asarray(m.section_a) * np.asarray(m.section_b))  # per section
+            d = np.linalg.norm(vertices[:, None, :] - centres[None, :, :], axis=2)
+            nearest = d.argmin(axis=1)
+            return int((d[np.arange(len(vertices)), nearest] < reach[nearest]).sum())
+        best = max(muscles, key=overlap)
         best = muscle_io.scale_muscles([best], 1.0 / scale)[0]
         best.joints, best.bulge = prefs.joints_per_muscle, prefs.bulge_factor
         if not rig_skins(arm):

@@ -69,7 +69,7 @@ class MYOSKIN_PT_extract(_WorkflowStep, bpy.types.Panel):
 
     def draw_step(self, context, layout, skin, arm, state, ui):
         col = layout.column()
-        col.prop(ui, "spacing")
+        col.prop(ui, "spacing_radii")
         col.prop(ui, "min_confidence")
         col.prop(ui, "joint_wrap")
         col.prop(ui, "max_per_region")
@@ -79,7 +79,7 @@ class MYOSKIN_PT_extract(_WorkflowStep, bpy.types.Panel):
         row = layout.row()
         row.enabled = not state.bound
         op = row.operator("myoskin.extract_muscles", icon='MOD_SKIN')
-        op.spacing, op.min_confidence, op.limit, op.vertex_group = (ui.spacing, ui.min_confidence, ui.limit,
+        op.spacing, op.min_confidence, op.limit, op.vertex_group = (ui.spacing_radii, ui.min_confidence, ui.limit,
                                                                     ui.vertex_group)
         op.joint_wrap, op.max_per_region, op.expert = ui.joint_wrap, ui.max_per_region, ui.expert
         layout.prop(ui, "expert")  # tuning, not everyday use

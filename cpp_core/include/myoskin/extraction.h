@@ -195,20 +195,27 @@ struct ChainFilterOptions {
   double spindleLength = 2.5;
   double spindleSteepness = 0.04;
   // Mirror twins (issue 13): on a body with a mirror plane (a torso plane on it, CuttingPlane::mirrorAxis), a limb chain
-  // that misses the floors above (and is no closed spindle) is kept when its mirror twin passed them: a chain of the
+  // that misses the floors above or minConfidence (and is no closed spindle) is kept when its mirror twin passed them: a chain of the
   // same family on the other limb, at least half of whose bump centres, mirrored, lie within twinReach times the larger
   // of the two chains' mean semi-axis a of this chain's centres, and half of this one's of its (the same belly on both
   // sides; the floors decide on each side's own sampling of it). Only a missing pair member is restored: not when a kept
   // chain on the dropped one's limb is the twin already (a second fragment of a paired belly), and twins of twins are
-  // not kept. A twin skips minConfidence: its own confidence is a short chain's (why the floors dropped it), its kept
+  // not kept. Chains the confidence floor dropped are restored the same way. A twin skips minConfidence: its own confidence is a short chain's (why the floors dropped it), its kept
   // twin carries the evidence. Measured: tune bipeds (seeds 1-3) recall 0.907 -> 0.963 (with the confidence floor
   // 0.944), precision 1.0; no twin on the shared characters or the smooth bodies. 0 = off
   double twinReach = 1.0;
-  double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones are kept)
+  double minConfidence = 0.5;                  // drop muscles below this confidence (forced ones, closed spindles
+                                               // and mirror twins are kept: their evidence is their shape or their
+                                               // twin, not their height)
 };
+
+// The smallest non-zero BodyScaleOptions::spacing, in limb radii (the automatic spacing is about 0.4 on the
+// MakeHuman and Godot bodies): a smaller one is a value in metres given where limb radii are taken.
+constexpr double kMinSpacingRadii = 0.05;
 
 // Body scale (stage 0, makeScaleContext): the power of ten the character is scaled by for the analysis, and the
 // plane spacing in limb radii.
+
 struct BodyScaleOptions {
   double spacing = 0.0;                        // cutting-plane spacing in limb radii (bodyLimbRadius; 2 = a limb's
                                                // diameter); 0 = planes.spacing (in the character's units), which
@@ -223,7 +230,7 @@ struct BodyScaleOptions {
                                                // < 0 = analyse in the file's own units
 };
 
-// Every option of the pipeline, stage by stage: the expert object (expertOptionKeys). The user-facing few, each
+// Every option of the pipeline, stage by stage: the expert object (expertOptions()). The user-facing few, each
 // body-relative (README "Muscle extraction"; Python extract_muscles' keywords, the CLI's and batch's flags):
 //   scale.spacing (plane spacing in limb radii, 0 = automatic), filters.minConfidence (0-1), link.minSections
 //   (significant sections a muscle needs), maxPerRegion (0 = all), ends.jointWrapFraction (joint wrap radius in the
@@ -373,7 +380,7 @@ struct SectionBumps {
   std::vector<double> significance;  // per ellipse (>= 1 significant)
   std::vector<double> relative;      // per ellipse, optional: the bump's protrusion / the section's mean radius
   std::vector<double> width;         // per ellipse, optional: the bump's skin arc length / the section's mean radius
-                                     // (with `relative`: the bump's steepness, ExtractionOptions::spindleSteepness)
+                                     // (with `relative`: the bump's steepness, ChainFilterOptions::spindleSteepness)
   std::vector<char> forced;          // per ellipse, optional (empty = none forced)
 };
 

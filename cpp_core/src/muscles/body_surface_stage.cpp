@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "muscles/extraction_stages.h"
+#include "myoskin/secondary_motion.h"  // meanEdgeLength
 #include "myoskin/errors.h"
 
 namespace myoskin::stages {
@@ -86,11 +87,7 @@ BodySurface makeBodySurface(const Character& character, const ExtractionOptions&
     b.rest.block<3, 1>(0, 3) = toBody(b.rest.block<3, 1>(0, 3));
   }
   out.scale.defaultSpacing = principalExtent(body.mesh.vertices) / 80.0;
-  double edges = 0.0;
-  for (int f = 0; f < body.mesh.numTriangles(); ++f)
-    for (int c = 0; c < 3; ++c)
-      edges += (body.mesh.vertices.row(body.mesh.triangles(f, (c + 1) % 3)) - body.mesh.vertices.row(body.mesh.triangles(f, c))).norm();
-  out.scale.meanEdgeLength = body.mesh.numTriangles() > 0 ? edges / (3.0 * body.mesh.numTriangles()) : 0.0;
+  out.scale.meanEdgeLength = body.mesh.numTriangles() > 0 ? meanEdgeLength(body.mesh.vertices, body.mesh.triangles) : 0.0;
   out.body = std::move(body);
   return out;
 }

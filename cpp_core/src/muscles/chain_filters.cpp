@@ -117,9 +117,9 @@ std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std
     bool shortChain = c.strongSections < minSections || evidence * evidenceScale < options.minEvidence;
     bool flat = false;
     double floor = trunk ? options.minRelativeTrunk : options.minRelative;
-    if (!trunk && options.continuousFraction > 0 && evidence * evidenceScale >= options.continuousEvidence &&
+    if (!trunk && evidence * evidenceScale >= options.continuousEvidence &&
         continuousChain(c, sections, options.magnitudeFraction))
-      floor *= std::min(options.continuousFraction, 1.0);
+      floor *= options.continuousFraction;  // in (0, 1], checked by the core
     if (!shortChain && floor > 0) {  // the bumps' mean height relative to their sections' size (faint tails left out)
       double sum = 0.0;
       int count = 0;

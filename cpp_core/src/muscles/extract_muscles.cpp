@@ -55,11 +55,14 @@ void validateExtraction(const Character& character, const ExtractionOptions& opt
                        " entries, the skin has " + std::to_string(nv) + " vertices");
   if (!std::isfinite(options.scale.referenceLimbRadius)) throw InputError("referenceLimbRadius must be finite");
   // The user-facing options (named as the CLI and Python name them too) and the expert floors.
-  auto require = [](bool ok, const char* what) {
+  auto require = [](bool ok, const std::string& what) {
     if (!ok) throw InputError(what);
   };
-  require(options.scale.spacing >= 0 && std::isfinite(options.scale.spacing),
-          "spacing (scale.spacing) must be >= 0 limb radii (0 = automatic)");
+  // A spacing below kMinSpacingRadii (an eighth of the automatic one on a human body) is a value in metres given
+  // to an option that takes limb radii: it would cut tens of thousands of planes.
+  require(options.scale.spacing == 0 || (options.scale.spacing >= kMinSpacingRadii && std::isfinite(options.scale.spacing)),
+          "spacing (scale.spacing) is in limb radii: 0 (automatic) or at least " + std::to_string(kMinSpacingRadii) +
+              ", got " + std::to_string(options.scale.spacing) + " (a value in metres?)");
   require(options.planes.spacing >= 0 && std::isfinite(options.planes.spacing),
           "planes.spacing must be >= 0 (0 = automatic)");
   require(options.filters.minConfidence >= 0 && options.filters.minConfidence <= 1,
@@ -76,7 +79,7 @@ void validateExtraction(const Character& character, const ExtractionOptions& opt
   require(options.filters.minRelativeTrunk >= 0, "filters.minRelativeTrunk must be >= 0");
   require(options.filters.minEvidence >= 0, "filters.minEvidence must be >= 0");
   require(options.filters.continuousFraction > 0 && options.filters.continuousFraction <= 1,
-          "filters.continuousFraction must be in (0, 1]");
+          "filters.continuousFraction must be in (0, 1] (1 = no relief for continuous chains)");
   require(options.filters.continuousEvidence >= 0, "filters.continuousEvidence must be >= 0");
   if (options.sectionBumps.trunkHarmonics < 0 || options.sectionBumps.trunkHarmonics > 16)
     throw InputError("trunkHarmonics must be in [0, 16], got " + std::to_string(options.sectionBumps.trunkHarmonics));

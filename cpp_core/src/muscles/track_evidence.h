@@ -12,7 +12,7 @@ namespace myoskin::detail {
 // Closed spindles: a belly's track along its limb
 // ============================================================================
 
-// What makes a track a closed spindle (ExtractionOptions::spindleEnds, spindleLength, spindleSteepness). Every
+// What makes a track a closed spindle (ChainFilterOptions::spindleEnds, spindleLength, spindleSteepness). Every
 // quantity is relative: significance to the section's protrusion threshold (itself relative to the section's radius),
 // steepness is protrusion / skin arc length, the track's length is counted in its own bumps' radii.
 struct SpindleOptions {

@@ -171,7 +171,8 @@ struct BodyFrame {
 // Blender, without one); up = `givenUp` if non-zero, else against the limbs (the sum of the limb bones across the
 // left-right axis: legs down, arms sideways or down), else the taller of +Y and +Z; facing = left x up, its sign
 // where the feet point (bones hanging from a downward limb bone and lying along the ground), else where the neck
-// leans (a horse's neck reaches forward), else +X as the left (glTF and Blender: the left side at +X).
+// leans (a horse's neck reaches forward), else the left-right axis's largest coordinate positive (glTF and Blender:
+// the left side at +X).
 BodyFrame bodyFrame(const Character& body, const Skeleton& joined, const std::vector<BoneRole>& roles,
                     const Vec3& givenUp) {
   const Skeleton& skeleton = body.skeleton;
@@ -184,7 +185,11 @@ BodyFrame bodyFrame(const Character& body, const Skeleton& joined, const std::ve
   } catch (const InputError&) {
     // no planes (a skin too small for the plane spacing's floor): the conventions' X
   }
-  if (across.x() < 0.0) across = -across;  // the conventions' sign, turned below by the feet or the neck
+  // The conventions' sign (its largest coordinate positive: +X on a body modelled with X across, and never a sign
+  // taken from round-off when a turned body's normal has no X), turned below by the feet or the neck.
+  Eigen::Index largest = 0;
+  across.cwiseAbs().maxCoeff(&largest);
+  if (across[largest] < 0.0) across = -across;
   Vec3 limbs = Vec3::Zero();
   for (int b = 0; b < nb; ++b)
     if (roles[b] == BoneRole::Limb) limbs += joined.bones[b].tail - joined.bones[b].head;
