@@ -294,7 +294,7 @@ void bindSkinning(py::module_& m) {
       "hybrid_weights",
       [](const Character& c, const PyMuscleRig& rig, double dominance, const std::map<std::string, double>& perMuscle,
          int maxInfluences, double fullDistance, double falloffDistance, int smoothingIterations, double endTaper,
-         double minWeight, double creaseRelief, double borderRelief) {
+         double minWeight, double creaseRelief, double borderRelief, double smoothingDistance) {
         if (!c.hasWeights()) throw InputError("hybrid_weights: character '" + c.name + "' has no skin weights");
         if (rig.skeleton().numBones() != c.skeleton.numBones())
           throw InputError("hybrid_weights: the rig has " + std::to_string(rig.skeleton().numBones()) +
@@ -310,6 +310,7 @@ void bindSkinning(py::module_& m) {
         o.minWeight = minWeight;
         o.creaseRelief = creaseRelief;
         o.borderRelief = borderRelief;
+        o.smoothingDistance = smoothingDistance;
         SkinWeights w;
         {
           py::gil_scoped_release release;
@@ -327,13 +328,15 @@ void bindSkinning(py::module_& m) {
       py::arg("min_weight") = HybridWeightOptions{}.minWeight,
       py::arg("crease_relief") = HybridWeightOptions{}.creaseRelief,
       py::arg("border_relief") = HybridWeightOptions{}.borderRelief,
+      py::arg("smoothing_distance") = HybridWeightOptions{}.smoothingDistance,
       "Combined weights (joints #V by K over [0, #B + #J), weights #V by K; rows sum to 1) from the "
       "character's skeleton weights and the rig's muscles: distance to each muscle's surface and side, "
       "smoothed, split between neighbouring muscle joints; muscle weights below min_weight go back to the "
       "bones (continuous ramp); crease_relief: in the skeleton's joint crease (skin blended between bones) the "
       "muscles take this much less (0 = off); border_relief: a muscle acts fully on skin whose skeleton weight lies "
       "on the muscle's segments alone, and not at all where a share of border_relief or more lies on other bones "
-      "(0 = off); dominance 0 gives the skeleton weights.");
+      "(0 = off); smoothing_distance > 0: the smoothing's diffusion distance in muscle radii instead of "
+      "smoothing_iterations passes (body-relative: a coarse and a fine mesh of a body get the same weights); dominance 0 gives the skeleton weights.");
 
   // ==========================================================================
   // Quality measures

@@ -79,6 +79,20 @@ void projectOnPolyline(const std::vector<Vec3>& line, const Vec3& p, int& segmen
   }
 }
 
+// Smoothing passes that diffuse a field over the vertices `near` (local[v] >= 0 inside) by an RMS distance L:
+// 2 L^2 / <e^2>, <e^2> the mean squared length of the edges inside, rounded, at most kMaxSmoothingPasses.
+int smoothingPasses(const Mesh& skin, const std::vector<int>& start, const std::vector<int>& next,
+                    const std::vector<int>& near, const std::vector<int>& local, double distance) {
+  double sum = 0.0;
+  long count = 0;
+  for (const int v : near)
+    for (int e = start[v]; e < start[v + 1]; ++e)
+      if (local[next[e]] >= 0) sum += (skin.vertices.row(v) - skin.vertices.row(next[e])).squaredNorm(), ++count;
+  if (count == 0 || !(sum > 0.0)) return 0;
+  const double passes = 2.0 * distance * distance / (sum / static_cast<double>(count));
+  return static_cast<int>(std::lround(std::min(passes, static_cast<double>(kMaxSmoothingPasses))));
+}
+
 void checkOptions(const HybridWeightOptions& o, const MuscleRig& rig) {
   if (!(o.dominance >= 0.0 && o.dominance <= 1.0))
     throw InputError("hybrid weights: dominance must be in [0, 1], got " + std::to_string(o.dominance));
@@ -93,6 +107,8 @@ void checkOptions(const HybridWeightOptions& o, const MuscleRig& rig) {
   if (!(o.fullDistance >= 0.0 && o.falloffDistance > o.fullDistance) || !std::isfinite(o.falloffDistance))
     throw InputError("hybrid weights: need 0 <= fullDistance < falloffDistance");
   if (o.smoothingIterations < 0) throw InputError("hybrid weights: smoothingIterations must be >= 0");
+  if (!(o.smoothingDistance >= 0.0) || !std::isfinite(o.smoothingDistance))
+    throw InputError("hybrid weights: smoothingDistance must be >= 0, got " + std::to_string(o.smoothingDistance));
   if (!(o.minWeight >= 0.0 && o.minWeight <= 0.25))
     throw InputError("hybrid weights: minWeight must be in [0, 0.25], got " + std::to_string(o.minWeight));
   if (!(o.endTaper >= 0.0 && o.endTaper <= 0.5)) throw InputError("hybrid weights: endTaper must be in [0, 0.5]");
@@ -261,8 +277,11 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
         value[i] = dominance * f * side * relief[near[i]] * border;
       }
     });
+    const int passes = options.smoothingDistance > 0.0
+                           ? smoothingPasses(skin, start, next, near, local, options.smoothingDistance * radius)
+                           : options.smoothingIterations;
     std::vector<double> smoothed(value.size());
-    for (int it = 0; it < options.smoothingIterations; ++it) {
+    for (int it = 0; it < passes; ++it) {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, near.size(), 1024), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
           const int v = near[i];
