@@ -40,6 +40,7 @@ py::dict reportToDict(const ExtractionReport& r) {
   d["mirrored"] = r.mirrored;
   d["split"] = r.split;
   d["dropped_flat"] = r.droppedFlat;
+  d["dropped_contour"] = r.droppedContour;
   d["spindles"] = r.spindles;
   d["twins"] = r.twins;
   d["forced"] = r.forced;

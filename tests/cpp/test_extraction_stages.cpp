@@ -61,6 +61,7 @@ TEST(Stages, EachStageAloneGivesTheOneShotResult) {
                                                                o.link.minSections, rep);
     EXPECT_EQ(rep.droppedShort, shot.report.droppedShort);
     EXPECT_EQ(rep.droppedFlat, shot.report.droppedFlat);
+    EXPECT_EQ(rep.droppedContour, shot.report.droppedContour);
     EXPECT_EQ(rep.spindles, shot.report.spindles);
     EXPECT_EQ(rep.twins, shot.report.twins);
     const std::vector<Muscle> muscles =

@@ -302,6 +302,8 @@ struct ExtractionReport {
   int droppedShort = 0, droppedConfidence = 0, droppedRegionLimit = 0;  // short: too few significant sections or
                                                                        // too little evidence (minEvidence)
   int droppedFlat = 0;                // muscles whose bumps stand out less than minRelative on average
+  int droppedContour = 0;             // shoulder chains that are the trunk's contour: strongest at the family's first
+                                      // plane, only falling towards the joint (chain_filters.cpp, trunkContour)
   int spindles = 0;                   // chains below those floors kept as closed spindles (spindleEnds)
   int twins = 0;                      // chains below those floors kept as mirror twins of kept ones (twinReach)
   std::vector<ChainRecord> chainRecords;  // every linked chain with two or more bumps, in linking order

@@ -38,7 +38,7 @@ std::string diagnose(const ExtractionReport& rep) {
            " sections analysed and none stands out of its smooth base by the threshold (smooth skin?)";
   return std::to_string(rep.chains) + " chains of bumps in " + std::to_string(rep.sections) +
          " sections, none kept as a muscle (" + std::to_string(rep.droppedShort) + " too short, " +
-         std::to_string(rep.droppedFlat) + " too flat, " + std::to_string(rep.droppedConfidence) +
+         std::to_string(rep.droppedFlat) + " too flat, " + std::to_string(rep.droppedContour) + " trunk contour, " + std::to_string(rep.droppedConfidence) +
          " low confidence, " + std::to_string(rep.droppedOverlap) + " overlapped): the relief is too faint or too short";
 }
 
