@@ -3,7 +3,8 @@
 // quadruped), MakeHuman muscular and neutral at plane spacings x 0.9-1.1 and the shared characters at their defaults.
 // One line per character: its muscle count, matched true muscles, names, and a checksum of the root curves, so two runs
 // are compared with diff. Printed, never asserted; tune seeds only (held-out seeds are the tests').
-//   bench_floor_ablation [--seeds FIRST LAST] [--heldout] [--generated] [--records] [key=value ...]   (default seeds 1-11; keys: expertOptions())
+//   bench_floor_ablation [--seeds FIRST LAST] [--heldout] [--generated] [--records] [key=value ...]   (default seeds 1-11; keys: expertOptions(),
+//   and filters.minConfidence)
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -74,7 +75,10 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "expected key=value, got %s\n", a.c_str());
         return 2;
       }
-      setExpertOption(base, a.substr(0, eq), std::atof(a.c_str() + eq + 1));
+      if (a.substr(0, eq) == "filters.minConfidence")  // user-facing, not an expert key
+        base.filters.minConfidence = std::atof(a.c_str() + eq + 1);
+      else
+        setExpertOption(base, a.substr(0, eq), std::atof(a.c_str() + eq + 1));
     }
   }
   for (BodyKind kind : {BodyKind::Biped, BodyKind::Quadruped})

@@ -100,7 +100,6 @@ std::vector<TrueMuscle> truthFromDicts(const py::list& truth) {
 const std::map<std::string, std::string> kRemovedKeywords = {
     {"min_relative", "filters.minRelative"},
     {"weak_fraction", "sectionBumps.weakFraction"},
-    {"min_relative_trunk", "filters.minRelativeTrunk"},
     {"mirror_limbs", "profiles.mirrorLimbs"},
     {"faint_relative", "sectionBumps.faintRelative"},
     {"min_evidence", "filters.minEvidence"},

@@ -137,7 +137,7 @@ std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std
     const bool trunk = detail::trunkFamily(c.family);
     bool shortChain = c.strongSections < minSections || evidence * evidenceScale < options.minEvidence;
     bool flat = false;
-    double floor = trunk ? options.minRelativeTrunk : options.minRelative;
+    double floor = trunk ? 0.0 : options.minRelative;  // trunk chains: no height floor (minRelative's note)
     if (!trunk && options.continuousFraction > 0 && evidence * evidenceScale >= options.continuousEvidence &&
         continuousChain(c, sections, options.magnitudeFraction))
       floor *= std::min(options.continuousFraction, 1.0);

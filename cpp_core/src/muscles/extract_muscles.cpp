@@ -73,7 +73,6 @@ void validateExtraction(const Character& character, const ExtractionOptions& opt
   require(options.sectionBumps.faintRelative >= 0 && options.sectionBumps.faintRelative <= 1,
           "sectionBumps.faintRelative must be in [0, 1]");
   require(options.filters.minRelative >= 0, "filters.minRelative must be >= 0");
-  require(options.filters.minRelativeTrunk >= 0, "filters.minRelativeTrunk must be >= 0");
   require(options.filters.minEvidence >= 0, "filters.minEvidence must be >= 0");
   require(options.filters.continuousFraction > 0 && options.filters.continuousFraction <= 1,
           "filters.continuousFraction must be in (0, 1]");
