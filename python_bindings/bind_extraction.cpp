@@ -40,6 +40,7 @@ py::dict reportToDict(const ExtractionReport& r) {
   d["mirrored"] = r.mirrored;
   d["split"] = r.split;
   d["dropped_flat"] = r.droppedFlat;
+  d["dropped_contour"] = r.droppedContour;
   d["spindles"] = r.spindles;
   d["twins"] = r.twins;
   d["forced"] = r.forced;
@@ -99,7 +100,6 @@ std::vector<TrueMuscle> truthFromDicts(const py::list& truth) {
 const std::map<std::string, std::string> kRemovedKeywords = {
     {"min_relative", "filters.minRelative"},
     {"weak_fraction", "sectionBumps.weakFraction"},
-    {"min_relative_trunk", "filters.minRelativeTrunk"},
     {"mirror_limbs", "profiles.mirrorLimbs"},
     {"faint_relative", "sectionBumps.faintRelative"},
     {"min_evidence", "filters.minEvidence"},

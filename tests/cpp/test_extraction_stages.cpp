@@ -62,6 +62,7 @@ TEST(Stages, EachStageAloneGivesTheOneShotResult) {
     EXPECT_EQ(rep.droppedShort, shot.report.droppedShort);
     EXPECT_EQ(rep.droppedFlat, shot.report.droppedFlat);
     EXPECT_EQ(rep.droppedConfidence, shot.report.droppedConfidence);
+    EXPECT_EQ(rep.droppedContour, shot.report.droppedContour);
     EXPECT_EQ(rep.spindles, shot.report.spindles);
     EXPECT_EQ(rep.twins, shot.report.twins);
     ASSERT_EQ(rep.chainRecords.size(), shot.report.chainRecords.size());

@@ -169,7 +169,8 @@ TEST(VariedCharacters, HeldOutRecallAndPrecision) {
     EXPECT_GT(spindles, 0) << bodyKindName(kind);  // the faint bellies the floors drop (ChainFilterOptions::spindleEnds)
     if (kind == BodyKind::Biped) EXPECT_GT(twins, 0);  // ... and their mirror twins (ChainFilterOptions::twinReach)
     // Measured against the visible length (measureExtraction: where a muscle raises the skin by at least half its peak
-    // relief, TrueMuscle::relief): biped recall 0.931, precision 0.960; quadruped recall 0.984, precision 0.977 (before
+    // relief, TrueMuscle::relief): biped recall 0.931, precision 0.971; quadruped recall 0.984, precision 0.977 (biped precision 0.960 before
+    // the trunk contour rule, chain_filters.cpp, dropped seed 24's rounded shoulders, deltoid.L and .R; before
     // the closed spindle needed no significant peak, was measured in its bumps' radii instead of 4 planes and skipped the
     // confidence floor, track_evidence.h: biped 0.868 / 0.960, quadruped 0.969 / 0.977; with
     // ChainFilterOptions::spindleEnds 0.75 and spindleSteepness 0.05: biped 0.826 / 0.958, quadruped 0.953 / 0.977; before
@@ -183,26 +184,28 @@ TEST(VariedCharacters, HeldOutRecallAndPrecision) {
     if (precision < 0.9) std::printf("SHORT OF TARGET: %s mean precision %.3f < 0.9\n", bodyKindName(kind), precision);
     const bool biped = kind == BodyKind::Biped;
     EXPECT_GE(recall, biped ? 0.92 : 0.975) << bodyKindName(kind);
-    EXPECT_GE(precision, biped ? 0.95 : 0.97) << bodyKindName(kind);
+    EXPECT_GE(precision, biped ? 0.965 : 0.97) << bodyKindName(kind);
   }
 }
 
 TEST(VariedCharacters, SmoothBodiesGiveAlmostNoMuscles) {
-  int bodies = 0, atMostOne = 0;
+  int bodies = 0, atMostOne = 0, contours = 0;
   for (BodyKind kind : kKinds)
     for (unsigned seed = kFirstHeldOut; seed <= kLastHeldOut; ++seed) {
       const ExtractionResult r = extractMuscles(body(seed, kind, 0.0).character);
       ++bodies, atMostOne += r.muscles.size() <= 1;
-      if (r.muscles.size() > 1) {
-        std::printf("SHORT OF TARGET: smooth %s seed %u gives %zu muscles:", bodyKindName(kind), seed, r.muscles.size());
-        for (const Muscle& m : r.muscles) std::printf(" %s", m.name.c_str());
-        std::printf("\n");
-      }
-      EXPECT_LE(r.muscles.size(), 2u) << bodyKindName(kind) << " seed " << seed;  // measured: at most 2
+      contours += r.report.droppedContour;
+      std::printf("smooth %s seed %u: %zu muscles", bodyKindName(kind), seed, r.muscles.size());
+      for (const Muscle& m : r.muscles) std::printf(" %s", m.name.c_str());
+      std::printf(" (%d shoulder chains dropped as the trunk's contour)\n", r.report.droppedContour);
+      EXPECT_LE(r.muscles.size(), 1u) << bodyKindName(kind) << " seed " << seed;  // the target
       EXPECT_TRUE(r.report.analysed);
     }
   std::printf("smooth held-out bodies with at most 1 muscle: %d of %d\n", atMostOne, bodies);
-  EXPECT_GE(atMostOne, bodies - 1);  // measured: 15 of 16 (the target: all; 14 before the neck planes kept to the neck)
+  // Measured: 16 of 16, none with a muscle (15 of 16 before the trunk contour rule, chain_filters.cpp: seed 24's biped
+  // kept its rounded shoulders as deltoid.L and .R, a 3-plane chain falling from the shoulder family's first plane).
+  EXPECT_EQ(atMostOne, bodies);
+  EXPECT_GT(contours, 0);  // the rule is what drops them (seed 24)
 }
 
 // ============================================================================

@@ -143,7 +143,7 @@ struct ChainFilterOptions {
                                                // (dropped), so the two bodies' shortest chains lie close together; neutral
                                                // at most half of muscular at every spacing x 0.9-1.1 for 6.25-7.0 (with
                                                // link.minSections 4 instead: 5 of 9 spacings fail). 0 = off
-  double magnitudeFraction = 0.8;              // the magnitude floors (minRelative, minRelativeTrunk) average only
+  double magnitudeFraction = 0.8;              // the magnitude floor (minRelative) averages only
                                                // the bumps of at least this share of the threshold, so faint tail
                                                // links extend a muscle without diluting its magnitude
   double minRelative = 0.09;                   // a muscle's bumps must on average stand out at least this share of
@@ -167,13 +167,10 @@ struct ChainFilterOptions {
                                                // 7.5-8.0 (7.0 adds the neutral chain; counting strong sections instead, 4
                                                // gives an unpaired calf at x 1.05 and 5 loses the quadriceps at x 0.95).
                                                // 1 = off
-  double minRelativeTrunk = 0.05;              // the floor for the trunk families instead (abdomen, neck: planes across
-                                               // the whole body), whose bumps are measured against the Fourier base
-                                               // (trunkHarmonics). Measured on MakeHuman: the muscular male's
-                                               // oblique/serratus chains stand out 0.06-0.07 on average, its chest
-                                               // chains 0.07; the neutral body's trunk chains are too short to count
-                                               // at any floor from 0.04 to 0.1 (before the Fourier base, against a
-                                               // conic, the floor was 0.15 and whole flanks passed it)
+  // The trunk families (abdomen, neck: planes across the whole body, bumps against the Fourier base, trunkHarmonics)
+  // have no height floor: the evidence floor decides them. Their floor minRelativeTrunk (0.05) was removed when turning
+  // it off changed nothing (bench_floor_ablation: tune seeds 1-11 muscular and smooth, MakeHuman muscular and neutral at
+  // spacings x 0.9-1.1, the shared characters' muscles; the neutral body's trunk chains are too short to count anyway).
   // A cue of shape, not height (issue 13, track-level evidence; the test lives in muscles/track_evidence.cpp): a limb
   // chain that misses the floors above (too short: minSections, minEvidence; or too flat: minRelative) is still a muscle
   // when its whole track is a closed spindle, as a belly is: its bumps' significance along 3 or more consecutive planes
@@ -309,6 +306,8 @@ struct ExtractionReport {
   int droppedShort = 0, droppedConfidence = 0, droppedRegionLimit = 0;  // short: too few significant sections or
                                                                        // too little evidence (minEvidence)
   int droppedFlat = 0;                // muscles whose bumps stand out less than minRelative on average
+  int droppedContour = 0;             // shoulder chains that are the trunk's contour: strongest at the family's first
+                                      // plane, only falling towards the joint (chain_filters.cpp, trunkContour)
   int spindles = 0;                   // chains below those floors kept as closed spindles (spindleEnds)
   int twins = 0;                      // chains below those floors kept as mirror twins of kept ones (twinReach)
   std::vector<ChainRecord> chainRecords;  // every linked chain with two or more bumps, in linking order

@@ -1,5 +1,6 @@
-// Stage 5b of the extraction: the floors a linked chain must pass (length, evidence, height, confidence) and the
-// cues that keep a chain below them (a closed spindle; the mirror twin of a kept chain).
+// Stage 5b of the extraction: the floors a linked chain must pass (length, evidence, height, confidence), the cues that
+// keep a chain below them (a closed spindle; the mirror twin of a kept chain), and the shape that drops one above them
+// (the trunk's contour on the shoulder planes).
 #include <algorithm>
 #include <cmath>
 
@@ -60,6 +61,21 @@ bool mirrorTwin(const MuscleChain& a, const MuscleChain& b, const std::vector<Se
   return mostlyNear(pa, pb) && mostlyNear(pb, pa);
 }
 
+// True when a shoulder chain is the trunk's own contour, not a belly: its track starts at the family's first plane (the
+// planes enter the trunk there, shoulderStart along the clavicle) and its significance only falls from there towards the
+// joint (each rise at most `tolerance` of the first link's). The rounded corner of a smooth trunk is cut obliquely by
+// those planes and fades outwards; a deltoid or pectoral grows towards the joint it caps (MakeHuman muscular: rising to
+// the last plane), or rises again after a dip (Godot's, which starts at the third plane).
+bool trunkContour(const MuscleChain& c, const std::vector<SectionBumps>& sections, double tolerance) {
+  if (c.family != "shoulder") return false;
+  const std::vector<std::pair<int, double>> profile = detail::trackProfile(c, sections);
+  if (profile.size() < 2 || profile.front().first != 0) return false;
+  const double slack = tolerance * profile.front().second;
+  for (size_t k = 1; k < profile.size(); ++k)
+    if (profile[k].second > profile[k - 1].second + slack) return false;
+  return true;
+}
+
 }  // namespace
 
 // ============================================================================
@@ -108,6 +124,11 @@ std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std
       kept.push_back(std::move(c));
       continue;
     }
+    // The trunk's rounded shoulder, whatever its height (no floor keeps it, no twin restores it).
+    if (trunkContour(c, sections, spindleOptions.tolerance)) {
+      drop(rep.droppedContour, "contour");
+      continue;
+    }
     double evidence = 0.0;
     for (const ChainLink& l : c.links)
       if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].significance.size()))
@@ -116,7 +137,7 @@ std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std
     const bool trunk = detail::trunkFamily(c.family);
     bool shortChain = c.strongSections < minSections || evidence * evidenceScale < options.minEvidence;
     bool flat = false;
-    double floor = trunk ? options.minRelativeTrunk : options.minRelative;
+    double floor = trunk ? 0.0 : options.minRelative;  // trunk chains: no height floor (minRelative's note)
     if (!trunk && evidence * evidenceScale >= options.continuousEvidence &&
         continuousChain(c, sections, options.magnitudeFraction))
       floor *= options.continuousFraction;  // in (0, 1], checked by the core

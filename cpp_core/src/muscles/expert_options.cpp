@@ -78,7 +78,6 @@ const std::vector<ExpertField>& expertFields() {
     MYOSKIN_DOUBLE(filters.minRelative),
     MYOSKIN_DOUBLE(filters.continuousFraction),
     MYOSKIN_DOUBLE(filters.continuousEvidence),
-    MYOSKIN_DOUBLE(filters.minRelativeTrunk),
     MYOSKIN_DOUBLE(filters.spindleEnds),
     MYOSKIN_DOUBLE(filters.spindleLength),
     MYOSKIN_DOUBLE(filters.spindleSteepness),

@@ -38,7 +38,7 @@ std::string diagnose(const ExtractionReport& rep) {
            " sections analysed and none stands out of its smooth base by the threshold (smooth skin?)";
   return std::to_string(rep.chains) + " chains of bumps in " + std::to_string(rep.sections) +
          " sections, none kept as a muscle (" + std::to_string(rep.droppedShort) + " too short, " +
-         std::to_string(rep.droppedFlat) + " too flat, " + std::to_string(rep.droppedConfidence) +
+         std::to_string(rep.droppedFlat) + " too flat, " + std::to_string(rep.droppedContour) + " trunk contour, " + std::to_string(rep.droppedConfidence) +
          " low confidence, " + std::to_string(rep.droppedOverlap) + " overlapped): the relief is too faint or too short";
 }
 
@@ -76,7 +76,6 @@ void validateExtraction(const Character& character, const ExtractionOptions& opt
   require(options.sectionBumps.faintRelative >= 0 && options.sectionBumps.faintRelative <= 1,
           "sectionBumps.faintRelative must be in [0, 1]");
   require(options.filters.minRelative >= 0, "filters.minRelative must be >= 0");
-  require(options.filters.minRelativeTrunk >= 0, "filters.minRelativeTrunk must be >= 0");
   require(options.filters.minEvidence >= 0, "filters.minEvidence must be >= 0");
   require(options.filters.continuousFraction > 0 && options.filters.continuousFraction <= 1,
           "filters.continuousFraction must be in (0, 1] (1 = no relief for continuous chains)");

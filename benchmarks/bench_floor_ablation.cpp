@@ -1,0 +1,112 @@
+// Which chain-filter floors still decide anything (issue 13, item 6: few knobs): extraction with expert options
+// overridden from the command line, over the tune characters (generated seeds, muscular and smooth, biped and
+// quadruped), MakeHuman muscular and neutral at plane spacings x 0.9-1.1 and the shared characters at their defaults.
+// One line per character: its muscle count, matched true muscles, names, and a checksum of the root curves, so two runs
+// are compared with diff. Printed, never asserted; tune seeds only (held-out seeds are the tests').
+//   bench_floor_ablation [--seeds FIRST LAST] [--heldout] [--generated] [--records] [key=value ...]   (default seeds 1-11; keys: expertOptions(),
+//   and filters.minConfidence)
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "myoskin/extraction.h"
+#include "myoskin/io.h"
+#include "myoskin/synthetic_character.h"
+
+using namespace myoskin;
+
+namespace {
+
+bool records = false;  // --records: every chain record (family, verdict, bone, significance, height, planes)
+
+// One character's line: count, matched, sorted names, root-curve checksum (in limb radii, so scale-free).
+void report(const std::string& set, const Character& c, const std::vector<TrueMuscle>& truth, const ExtractionOptions& o) {
+  const ExtractionResult r = extractMuscles(c, o);
+  std::vector<std::string> names;
+  double sum = 0.0;
+  for (const Muscle& m : r.muscles) {
+    names.push_back(m.name);
+    for (const Vec3& p : m.rootCurve) sum += (p.x() + 2.0 * p.y() + 3.0 * p.z()) / r.report.limbRadius;
+  }
+  std::sort(names.begin(), names.end());
+  const int matched = truth.empty() ? 0 : measureExtraction(r.muscles, truth).matched;
+  std::printf("%-34s found %2zu matched %2d sum %.4f :", set.c_str(), r.muscles.size(), matched, sum);
+  for (const std::string& n : names) std::printf(" %s", n.c_str());
+  std::printf("\n");
+  if (records)
+    for (const ChainRecord& ch : r.report.chainRecords) {
+      std::printf("    %-8s %-10s %-16s spindle %d steep %.4f sig", ch.family.c_str(), ch.verdict.c_str(), ch.bone.c_str(),
+                  ch.spindle ? 1 : 0, ch.steepness);
+      for (double v : ch.significance) std::printf(" %.2f", v);
+      std::printf(" rel");
+      for (double v : ch.relative) std::printf(" %.3f", v);
+      std::printf(" planes");
+      for (int v : ch.planes) std::printf(" %d", v);
+      std::printf("\n");
+    }
+  std::fflush(stdout);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  unsigned first = 1, last = 11;
+  ExtractionOptions base;
+  base.buildSurfaces = false;
+  bool shared = true;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--seeds" && i + 2 < argc) {
+      first = std::atoi(argv[i + 1]), last = std::atoi(argv[i + 2]);
+      i += 2;
+    } else if (a == "--heldout") {
+      first = 20, last = 27, shared = false;
+    } else if (a == "--records") {
+      records = true;
+    } else if (a == "--generated") {
+      shared = false;
+    } else {
+      const size_t eq = a.find('=');
+      if (eq == std::string::npos) {
+        std::fprintf(stderr, "expected key=value, got %s\n", a.c_str());
+        return 2;
+      }
+      if (a.substr(0, eq) == "filters.minConfidence")  // user-facing, not an expert key
+        base.filters.minConfidence = std::atof(a.c_str() + eq + 1);
+      else
+        setExpertOption(base, a.substr(0, eq), std::atof(a.c_str() + eq + 1));
+    }
+  }
+  for (BodyKind kind : {BodyKind::Biped, BodyKind::Quadruped})
+    for (unsigned seed = first; seed <= last; ++seed)
+      for (double ms : {1.0, 0.0}) {
+        SyntheticBodyOptions so;
+        so.seed = seed, so.kind = kind, so.muscleScale = ms;
+        const SyntheticCharacter b = makeSyntheticBody(so);
+        report(std::string(ms > 0 ? "" : "smooth_") + bodyKindName(kind) + "_" + std::to_string(seed), b.character,
+               b.muscles, base);
+      }
+  if (!shared) return 0;
+  for (const char* name : {"makehuman_muscular_male", "makehuman_neutral"}) {
+    const std::string path = std::string(MYOSKIN_SHARED_DIR "/characters/") + name + "/" + name + ".glb";
+    const Character c = loadCharacter(path);
+    const Vec3 lo = c.mesh.vertices.colwise().minCoeff().transpose(), hi = c.mesh.vertices.colwise().maxCoeff().transpose();
+    for (int step = 0; step <= 8; ++step) {
+      ExtractionOptions o = base;
+      const double f = 0.9 + 0.025 * step;
+      o.planes.spacing = f * (hi - lo).maxCoeff() / 80.0;
+      char set[128];
+      std::snprintf(set, sizeof set, "%s_x%.3f", name, f);
+      report(set, c, {}, o);
+    }
+  }
+  for (const char* file : {"makehuman_muscular_male/makehuman_muscular_male.glb", "makehuman_neutral/makehuman_neutral.glb",
+                           "godot_male_base_mesh_lowpoly/male_base_mesh.glb", "quaternius_horse/horse.glb",
+                           "quaternius_woman_soldier/woman_soldier.glb"})
+    report(file, loadCharacter(std::string(MYOSKIN_SHARED_DIR "/characters/") + file), {}, base);
+  return 0;
+}
