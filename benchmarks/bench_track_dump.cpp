@@ -16,6 +16,7 @@
 #include "myoskin/extraction.h"
 #include "myoskin/io.h"
 #include "myoskin/synthetic_character.h"
+#include "tuning_sets.h"
 #include "line_distance.h"
 
 using namespace myoskin;
@@ -60,27 +61,8 @@ int main(int argc, char** argv) {
   const bool makehuman = argc < 4 || std::atoi(argv[3]) != 0;
   ExtractionOptions base;
   base.buildSurfaces = false;
-  for (BodyKind kind : {BodyKind::Biped, BodyKind::Quadruped})
-    for (unsigned seed = first; seed <= last; ++seed)
-      for (double ms : {1.0, 0.0}) {
-        SyntheticBodyOptions so;
-        so.seed = seed, so.kind = kind, so.muscleScale = ms;
-        const SyntheticCharacter b = makeSyntheticBody(so);
-        dump(std::string(ms > 0 ? "" : "smooth_") + bodyKindName(kind) + "_" + std::to_string(seed), b.character, b.muscles, base);
-      }
+  bench::forEachTuningBody(first, last, base, dump);
   if (!makehuman) return 0;
-  for (const char* name : {"makehuman_muscular_male", "makehuman_neutral"}) {
-    const std::string path = std::string(MYOSKIN_SHARED_DIR "/characters/") + name + "/" + name + ".glb";
-    const Character c = loadCharacter(path);
-    const Vec3 lo = c.mesh.vertices.colwise().minCoeff().transpose(), hi = c.mesh.vertices.colwise().maxCoeff().transpose();
-    for (int step = 0; step <= 8; ++step) {
-      ExtractionOptions o = base;
-      const double f = 0.9 + 0.025 * step;
-      o.planes.spacing = f * (hi - lo).maxCoeff() / 80.0;
-      char set[128];
-      std::snprintf(set, sizeof set, "%s_x%.3f", name, f);
-      dump(set, c, {}, o);
-    }
-  }
+  bench::forEachMakeHumanSpacing(base, dump);
   return 0;
 }
