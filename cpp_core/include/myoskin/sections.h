@@ -101,6 +101,9 @@ struct PlaneOptions {
 std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const std::vector<BoneRole>& roles,
                                             const PlaneOptions& options = {});
 
+// The automatic plane spacing (PlaneOptions::spacing = 0): 1/80 of the skin's largest principal extent (#V by 3).
+double automaticPlaneSpacing(const Points& vertices);
+
 // The skeleton's mirror plane (point c, unit normal n): through the first torso plane on it (CuttingPlane::mirrorAxis),
 // normal to that plane's x or y axis, whichever maps the limb planes' origins closer onto another limb's (rest frames
 // differ in which in-plane axis of the spine points sideways; makeCuttingPlanes turns the torso frames so it is x).

@@ -86,7 +86,7 @@ BodySurface makeBodySurface(const Character& character, const ExtractionOptions&
     b.head = toBody(b.head), b.tail = toBody(b.tail);
     b.rest.block<3, 1>(0, 3) = toBody(b.rest.block<3, 1>(0, 3));
   }
-  out.scale.defaultSpacing = principalExtent(body.mesh.vertices) / 80.0;
+  out.scale.defaultSpacing = automaticPlaneSpacing(body.mesh.vertices);
   out.scale.meanEdgeLength = body.mesh.numTriangles() > 0 ? meanEdgeLength(body.mesh.vertices, body.mesh.triangles) : 0.0;
   out.body = std::move(body);
   return out;

@@ -181,6 +181,8 @@ bool skeletonMirrorPlane(const std::vector<CuttingPlane>& planes, Vec3& c, Vec3&
   return true;
 }
 
+double automaticPlaneSpacing(const Points& vertices) { return principalExtent(vertices) / 80.0; }
+
 std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const std::vector<BoneRole>& roles,
                                             const PlaneOptions& options) {
   const Skeleton& sk = character.skeleton;
@@ -188,8 +190,7 @@ std::vector<CuttingPlane> makeCuttingPlanes(const Character& character, const st
     throw InputError("bone roles: " + std::to_string(roles.size()) + " roles for " + std::to_string(sk.numBones()) + " bones");
   if (!(options.spacing >= 0) || !std::isfinite(options.spacing)) throw InputError("plane spacing must be >= 0");
   if (character.mesh.numVertices() == 0) throw InputError("cutting planes: the skin is empty");
-  const double height = principalExtent(character.mesh.vertices);
-  const double spacing = options.spacing > 0 ? options.spacing : height / 80.0;
+  const double spacing = options.spacing > 0 ? options.spacing : automaticPlaneSpacing(character.mesh.vertices);
   if (!(spacing > 1e-5)) throw InputError("cutting planes: the skin has no extent");
 
   const auto limbChains = chainsOf(sk, roles, BoneRole::Limb);
