@@ -132,8 +132,13 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
   }
   if (!fitted) {
     // Fallback: a round belly half the chord wide, centred beneath the apex. The skin shows only the top of
-    // a partly buried belly, so its height says little about the belly's depth.
-    const double half = coreHalf;
+    // a partly buried belly, so its height says little about the belly's depth. A bump whose ends coincide
+    // (duplicate skin vertices) takes half its farthest point from the apex instead.
+    double half = coreHalf;
+    if (!(half > 0))
+      for (const Vec2& p : arc) half = std::max(half, 0.5 * (p - apex).norm());
+    if (!(half > 0) || !std::isfinite(half))
+      throw InputError("ellipse fit: the bump's arc has no extent (its points coincide)");
     e.center = apex - half * v;
     e.a = e.b = half;
     e.angle = std::atan2(u.y(), u.x());
