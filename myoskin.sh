@@ -29,7 +29,8 @@ SANITIZE="${MYOSKIN_SANITIZE:-1}"
 CMAKE=/usr/bin/cmake; [ -x "$CMAKE" ] || CMAKE=cmake
 CTEST=/usr/bin/ctest; [ -x "$CTEST" ] || CTEST=ctest
 
-log() { printf '\033[1mmyoskin:\033[0m %s\n' "$*"; }
+# Each line carries the seconds since the command started, so a CI log shows where the time goes.
+log() { printf '\033[1mmyoskin:\033[0m [%ss] %s\n' "$SECONDS" "$*"; }
 # shellcheck source=tools/matrix.sh
 . "$ROOT/tools/matrix.sh"
 # shellcheck source=tools/package.sh
@@ -63,6 +64,7 @@ build() {
   if [ ! -f "$BUILD/CMakeCache.txt" ]; then
     "$CMAKE" -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3
   fi
+  log "build ($BUILD)"
   "$CMAKE" --build "$BUILD" -j "$JOBS"
   matrix_build
   package
@@ -103,6 +105,7 @@ build_sanitize() {
 }
 
 run_tests() {
+  log "tests (ctest -j $JOBS)"
   # shellcheck disable=SC2086
   "$CTEST" --test-dir "$BUILD" --output-on-failure -j "$JOBS" --timeout 1500 ${MYOSKIN_TEST_ARGS:-}
 }
@@ -137,6 +140,8 @@ run_gallery() {
 }
 
 run_bench() {
+  log "building the benchmarks (target benchmarks: not part of the test build)"
+  "$CMAKE" --build "$BUILD" -j "$JOBS" --target benchmarks
   log "bench_skin_quality (core: LBS, DQS, Myoskin at bent joints)"
   PYTHONPATH="$BUILD/blender_scripts/addons/myoskin" /usr/bin/python3 "$ROOT/benchmarks/bench_skin_quality.py" \
     "${MYOSKIN_SHARED_DIR:-$ROOT/../shared}"
