@@ -345,37 +345,28 @@ TEST(BumpEllipse, UnderTheSkinNearTheBelly) {
   }
 }
 
-TEST(BumpEllipse, BumpWhoseEndsCoincideGetsAFiniteEllipse) {
-  // A skin loop that leaves a vertex and comes back to a copy of it (duplicate vertices; found by fuzz_bumps): the
-  // bump's chord has zero length, so the round fallback belly takes half the arc's reach from the apex.
-  const double R = 0.05, rho = 0.01;
+TEST(BumpEllipse, SpikeOfRepeatedPointsGetsAFiniteEllipse) {
+  // A spike whose tip is one skin point repeated (consecutive duplicate vertices; found by fuzz_bumps): the belly
+  // (the arc above 35 % of the apex height) would be the repeated points alone, with no extent, so the fit keeps the
+  // whole arc and gives a finite belly of positive size under the spike.
+  const double R = 0.05;
   std::vector<Vec2> pts;
-  int first = -1, last = -1, apex = -1;
   for (int i = 0; i < 120; ++i) {
     const double t = 2 * kPi * i / 120;
-    const Vec2 c = R * Vec2(std::cos(t), std::sin(t));
-    pts.push_back(c);
-    if (i != 30) continue;
-    const Vec2 n = c.normalized(), tangent(-n.y(), n.x()), q = c + rho * n;
-    first = static_cast<int>(pts.size()) - 1;
-    for (int k = 1; k < 24; ++k) {
-      const double phi = 2 * kPi * k / 24;
-      if (k == 12) apex = static_cast<int>(pts.size());
-      pts.push_back(q - rho * (std::cos(phi) * n + std::sin(phi) * tangent));
-    }
-    last = static_cast<int>(pts.size());
-    pts.push_back(c);  // the duplicate
+    pts.push_back(R * Vec2(std::cos(t), std::sin(t)));
+    if (i == 30)
+      for (int k = 0; k < 8; ++k) pts.push_back(1.3 * R * Vec2(std::cos(t + kPi / 120), std::sin(t + kPi / 120)));
   }
   Points2 p(static_cast<Eigen::Index>(pts.size()), 2);
   for (size_t i = 0; i < pts.size(); ++i) p.row(static_cast<Eigen::Index>(i)) = pts[i].transpose();
   Bump b;
-  b.first = first, b.last = last, b.apex = apex;
+  b.first = 30, b.apex = 31, b.last = 39;
   const SectionTriangulation t = triangulateSection(p);
   const Ellipse2 e = fitBumpEllipse(p, b, t);
   EXPECT_TRUE(e.center.allFinite() && std::isfinite(e.a) && std::isfinite(e.angle));
   EXPECT_GT(e.b, 0.0);
-  EXPECT_LE(e.a, 2 * rho);  // no larger than the loop
-  EXPECT_LT((e.center - p.row(apex).transpose()).norm(), 3 * rho);
+  EXPECT_LT((e.center - p.row(31).transpose()).norm(), 0.5 * R);  // under the spike
+  EXPECT_TRUE(inside(p, e.center));
 }
 
 TEST(BumpStage, SpeedPerSection) {

@@ -91,7 +91,7 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
   size_t lo = apexAt, hi = apexAt;
   while (lo > 0 && height[lo - 1] >= cut) --lo;
   while (hi + 1 < arc.size() && height[hi + 1] >= cut) ++hi;
-  if (hi - lo >= 4) {
+  if (hi - lo >= 4 && (arc[hi] - arc[lo]).norm() > 0) {  // (a run of coincident points is no belly)
     arc = std::vector<Vec2>(arc.begin() + lo, arc.begin() + hi + 1);
     s = std::vector<double>(s.begin() + lo, s.begin() + hi + 1);
     const double s0 = s.front();  // (a copy: s.front() itself becomes 0 in the loop)
