@@ -17,9 +17,12 @@ set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 BUILD="${MYOSKIN_BUILD_DIR:-$ROOT/build}"
 JOBS="${MYOSKIN_JOBS:-$(nproc)}"
-PACKAGES=(g++ cmake make libcgal-dev libopenmesh-dev libglm-dev libeigen3-dev pybind11-dev python3-dev
-          libtinygltf-dev nlohmann-json3-dev libtbb-dev libgtest-dev libbenchmark-dev python3-numpy
-          python3-pytest python3-venv python3-pip blender xvfb xauth debootstrap)
+# What the build needs (installed first), and what only the tests and the matrix need (installed in the
+# background while the host builds); the chroot gets both.
+BUILD_PACKAGES=(g++ cmake make libcgal-dev libopenmesh-dev libglm-dev libeigen3-dev pybind11-dev python3-dev
+                libtinygltf-dev nlohmann-json3-dev libtbb-dev libgtest-dev libbenchmark-dev)
+RUN_PACKAGES=(python3-numpy python3-pytest python3-venv python3-pip blender xvfb xauth debootstrap)
+PACKAGES=("${BUILD_PACKAGES[@]}" "${RUN_PACKAGES[@]}")
 # The sanitizer and fuzz tiers (host only: clang with its ASan/UBSan/libFuzzer runtimes; the same names on
 # Debian 12 and 13), labels sanitize and fuzz. MYOSKIN_SANITIZE: 1 (default) the quick scope (tests that repeat
 # the same code over more seeds left out, see tests/CMakeLists.txt), full every test, 0 neither tier.
@@ -36,23 +39,50 @@ log() { printf '\033[1mmyoskin:\033[0m [%ss] %s\n' "$SECONDS" "$*"; }
 # shellcheck source=tools/package.sh
 . "$ROOT/tools/package.sh"
 
-# Install whatever Debian packages are missing (as root, or through sudo).
-setup() {
-  local missing=() wanted=("${PACKAGES[@]}")
-  [ "$SANITIZE" = 0 ] || wanted+=("${SANITIZE_PACKAGES[@]}")
-  for p in "${wanted[@]}"; do
+# Install whichever of the given Debian packages are missing (as root, or through sudo).
+APT_UPDATED=0
+install_packages() {
+  local missing=() p
+  for p in "$@"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
-  if [ ${#missing[@]} -eq 0 ]; then log "all Debian packages present"; matrix_setup; return; fi
+  [ ${#missing[@]} -gt 0 ] || return 0
   log "installing missing Debian packages: ${missing[*]}"
   local sudo=""
   if [ "$(id -u)" -ne 0 ]; then
     command -v sudo >/dev/null || { echo "myoskin: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
     sudo="sudo"
   fi
-  $sudo apt-get update -q
+  [ "$APT_UPDATED" = 1 ] || $sudo apt-get update -q
+  APT_UPDATED=1
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
-  matrix_setup
+}
+
+# The build's packages now; the rest (Blender, the test tools) and the matrix's setup (debootstrap, the chroot's
+# packages, the bpy wheels: network and disk bound) in the background while the host builds (setup_wait).
+SETUP_PID=""
+setup() {
+  local wanted=("${BUILD_PACKAGES[@]}")
+  [ "$SANITIZE" = 0 ] || wanted+=("${SANITIZE_PACKAGES[@]}")
+  install_packages "${wanted[@]}"
+  mkdir -p "$BUILD"
+  log "Blender, the test tools and the matrix are set up in the background ($BUILD/setup-background.log)"
+  ( install_packages "${RUN_PACKAGES[@]}"; matrix_setup ) >"$BUILD/setup-background.log" 2>&1 &
+  SETUP_PID=$!
+  trap 'setup_wait quiet' EXIT
+}
+
+# Waits for the background setup and prints its log; stops when it failed. With `quiet` (on exit) only waits, so
+# an apt or debootstrap run is never cut off halfway.
+setup_wait() {
+  [ -n "$SETUP_PID" ] || return 0
+  local status=0 pid="$SETUP_PID"
+  SETUP_PID=""
+  wait "$pid" || status=$?
+  [ "${1:-}" = quiet ] && return 0
+  cat "$BUILD/setup-background.log"
+  [ "$status" = 0 ] || { echo "myoskin: the background setup failed (above)" >&2; exit 1; }
+  log "background setup done"
 }
 
 # Configure once (Release, Blender's Python), then build incrementally.
@@ -66,6 +96,7 @@ build() {
   fi
   log "build ($BUILD)"
   "$CMAKE" --build "$BUILD" -j "$JOBS"
+  setup_wait
   matrix_build
   package
   build_sanitize
@@ -185,7 +216,7 @@ run_bench() {
 }
 
 case "${1:-}" in
-  setup) setup ;;
+  setup) setup; setup_wait ;;
   build) setup; build ;;
   test) setup; build; run_tests ;;
   demo) setup; build; run_demo "${2:-}" ;;
