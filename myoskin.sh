@@ -65,6 +65,13 @@ setup() {
   local wanted=("${BUILD_PACKAGES[@]}")
   [ "$SANITIZE" = 0 ] || wanted+=("${SANITIZE_PACKAGES[@]}")
   install_packages "${wanted[@]}"
+  # Not root: sudo asks for its password here, not from the background.
+  if [ "$(id -u)" -ne 0 ] && command -v sudo >/dev/null; then
+    local p
+    for p in "${RUN_PACKAGES[@]}"; do
+      dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || { sudo -v; break; }
+    done
+  fi
   mkdir -p "$BUILD"
   log "Blender, the test tools and the matrix are set up in the background ($BUILD/setup-background.log)"
   ( install_packages "${RUN_PACKAGES[@]}"; matrix_setup ) >"$BUILD/setup-background.log" 2>&1 &
@@ -72,14 +79,18 @@ setup() {
   trap 'setup_wait quiet' EXIT
 }
 
-# Waits for the background setup and prints its log; stops when it failed. With `quiet` (on exit) only waits, so
-# an apt or debootstrap run is never cut off halfway.
+# Waits for the background setup and prints its log; stops when it failed. With `quiet` (on exit, after a failure)
+# it still waits, so an apt or debootstrap run is never cut off halfway, and shows the log's end if that failed too.
 setup_wait() {
   [ -n "$SETUP_PID" ] || return 0
   local status=0 pid="$SETUP_PID"
   SETUP_PID=""
+  log "waiting for the background setup ($BUILD/setup-background.log)"
   wait "$pid" || status=$?
-  [ "${1:-}" = quiet ] && return 0
+  if [ "${1:-}" = quiet ]; then
+    [ "$status" = 0 ] || { tail -20 "$BUILD/setup-background.log" >&2; echo "myoskin: the background setup failed too" >&2; }
+    return 0
+  fi
   cat "$BUILD/setup-background.log"
   [ "$status" = 0 ] || { echo "myoskin: the background setup failed (above)" >&2; exit 1; }
   log "background setup done"

@@ -12,6 +12,7 @@
 
 #include "myoskin/bumps.h"
 #include "myoskin/errors.h"
+#include "test_support.h"
 
 using namespace myoskin;
 
@@ -367,6 +368,42 @@ TEST(BumpEllipse, SpikeOfRepeatedPointsGetsAFiniteEllipse) {
   EXPECT_GT(e.b, 0.0);
   EXPECT_LT((e.center - p.row(31).transpose()).norm(), 0.5 * R);  // under the spike
   EXPECT_TRUE(inside(p, e.center));
+}
+
+TEST(BumpEllipse, BumpOfCoincidentPointsIsRefusedAndALoopGetsABellyInside) {
+  // A bump whose points all coincide (three copies of one skin vertex) has no extent: an InputError that says so.
+  const double R = 0.05;
+  std::vector<Vec2> pts;
+  for (int i = 0; i < 120; ++i) {
+    pts.push_back(R * Vec2(std::cos(2 * kPi * i / 120), std::sin(2 * kPi * i / 120)));
+    if (i == 30) pts.push_back(pts.back()), pts.push_back(pts.back());
+  }
+  Points2 p(static_cast<Eigen::Index>(pts.size()), 2);
+  for (size_t i = 0; i < pts.size(); ++i) p.row(static_cast<Eigen::Index>(i)) = pts[i].transpose();
+  Bump b;
+  b.first = 30, b.apex = 31, b.last = 32;
+  const std::string refused = test::inputErrorOf([&] { fitBumpEllipse(p, b, SectionTriangulation{}); });
+  EXPECT_NE(refused.find("no extent"), std::string::npos) << refused;
+  // A skin loop that leaves a vertex and comes back to a copy of it (the bump's ends coincide): a finite belly of
+  // positive size inside the loop.
+  const double rho = 0.01;
+  const Vec2 c = R * Vec2(0, 1), n(0, 1), tangent(-1, 0), q = c + rho * n;
+  std::vector<Vec2> loop{Vec2(R, 0), c};
+  for (int k = 1; k < 24; ++k) {
+    const double phi = 2 * kPi * k / 24;
+    loop.push_back(q - rho * (std::cos(phi) * n + std::sin(phi) * tangent));
+  }
+  loop.push_back(c);
+  loop.push_back(Vec2(-R, 0));
+  loop.push_back(Vec2(0, -R));
+  Points2 l(static_cast<Eigen::Index>(loop.size()), 2);
+  for (size_t i = 0; i < loop.size(); ++i) l.row(static_cast<Eigen::Index>(i)) = loop[i].transpose();
+  b.first = 1, b.apex = 13, b.last = 25;
+  const Ellipse2 e = fitBumpEllipse(l, b, SectionTriangulation{});
+  EXPECT_TRUE(e.center.allFinite() && std::isfinite(e.a) && std::isfinite(e.angle));
+  EXPECT_GT(e.b, 0.0);
+  EXPECT_LE(e.a, 2 * rho);
+  EXPECT_LT((e.center - q).norm(), 2 * rho);
 }
 
 TEST(BumpStage, SpeedPerSection) {

@@ -63,6 +63,12 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
   const int n = static_cast<int>(polygon.rows());
   if (n < 3) throw InputError("ellipse fit: the section has fewer than 3 points");
   if (!polygon.allFinite()) throw InputError("ellipse fit: the section has non-finite points");
+  // The section's size: squares of its coordinates must stay finite and normal, and coincidence is judged relative
+  // to it (points a few ulps apart are one point).
+  const double size = (polygon.colwise().maxCoeff() - polygon.colwise().minCoeff()).norm();
+  if (!(size > 1e-150 && size < 1e150))
+    throw InputError("ellipse fit: the section's size is out of range (" + std::to_string(size) + ")");
+  const double tiny = 1e-12 * size;
   if (bump.first < 0 || bump.first >= n || bump.last < 0 || bump.last >= n || bump.apex < 0 || bump.apex >= n)
     throw InputError("ellipse fit: bump indices outside the section");
   // The arc first -> last (counter-clockwise, wrapping) and its arc length.
@@ -91,7 +97,7 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
   size_t lo = apexAt, hi = apexAt;
   while (lo > 0 && height[lo - 1] >= cut) --lo;
   while (hi + 1 < arc.size() && height[hi + 1] >= cut) ++hi;
-  if (hi - lo >= 4 && (arc[hi] - arc[lo]).norm() > 0) {  // (a run of coincident points is no belly)
+  if (hi - lo >= 4 && (arc[hi] - arc[lo]).norm() > tiny) {  // (a run of coincident points is no belly)
     arc = std::vector<Vec2>(arc.begin() + lo, arc.begin() + hi + 1);
     s = std::vector<double>(s.begin() + lo, s.begin() + hi + 1);
     const double s0 = s.front();  // (a copy: s.front() itself becomes 0 in the loop)
@@ -135,9 +141,9 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
     // a partly buried belly, so its height says little about the belly's depth. A bump whose ends coincide
     // (duplicate skin vertices) takes half its farthest point from the apex instead.
     double half = coreHalf;
-    if (!(half > 0))
+    if (!(half > tiny))
       for (const Vec2& p : arc) half = std::max(half, 0.5 * (p - apex).norm());
-    if (!(half > 0) || !std::isfinite(half))
+    if (!(half > tiny))
       throw InputError("ellipse fit: the bump's arc has no extent (its points coincide)");
     e.center = apex - half * v;
     e.a = e.b = half;
@@ -160,7 +166,7 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
     if (!insidePolygon(polygon, e.center) || boundaryDistance(polygon, e.center) < e.b) e.center -= 0.1 * e.b * v;
   }
   if (e.b > e.a) std::swap(e.a, e.b), e.angle += M_PI / 2;
-  if (!std::isfinite(e.center.x()) || !std::isfinite(e.a) || !(e.b > 0))
+  if (!e.center.allFinite() || !std::isfinite(e.a) || !(e.b > 0))
     throw MyoskinError("ellipse fit failed to produce a finite ellipse");
   (void)triangulation;
   return e;
