@@ -19,6 +19,7 @@
 #include "myoskin/io.h"
 #include "myoskin/synthetic_character.h"
 #include "line_distance.h"
+#include "tuning_sets.h"
 
 using namespace myoskin;
 using myoskin::bench::lineDistance;
@@ -72,15 +73,9 @@ int main(int argc, char** argv) {
   const double spacingFactor = argc >= 4 ? std::atof(argv[3]) : 1.0;
   ExtractionOptions dropped;  // the defaults (no surfaces): the records say what the floors and the rule made of each
   dropped.buildSurfaces = false;
-  for (BodyKind kind : {BodyKind::Biped, BodyKind::Quadruped})
-    for (unsigned seed = first; seed <= last; ++seed)
-      for (double muscles : {1.0, 0.0}) {
-        SyntheticBodyOptions o;
-        o.seed = seed, o.kind = kind, o.muscleScale = muscles;
-        const SyntheticCharacter b = makeSyntheticBody(o);
-        const std::string set = std::string(bodyKindName(kind)) + (muscles > 0 ? " " : " smooth ") + std::to_string(seed);
-        printChains(set, extractMuscles(b.character, dropped), &b.muscles);
-      }
+  bench::forEachTuningBody(first, last, dropped,
+                           [](const std::string& set, const Character& c, const std::vector<TrueMuscle>& truth,
+                              const ExtractionOptions& o) { printChains(set, extractMuscles(c, o), &truth); });
   const std::string dir = MYOSKIN_SHARED_DIR "/characters/";
   for (const char* name : {"makehuman_muscular_male", "makehuman_neutral"}) {
     const std::string path = dir + name + "/" + name + ".glb";
