@@ -1,5 +1,6 @@
 // Pose-space correctives: rest-space offsets of a sculpt, bone local rotations, the per-bone radial basis
-// functions (their kernels and coefficients, which the add-on writes as Blender drivers) and their weights.
+// functions (their kernels and coefficients, which the add-on writes as Blender drivers) and their weights; the
+// volume blend's joint volume keys (shape keys driven by a joint's swing) and their weights.
 #include <memory>
 
 #include "bindings.h"
@@ -7,6 +8,7 @@
 #include "myoskin/correctives.h"
 #include "myoskin/errors.h"
 #include "myoskin/skinning.h"
+#include "myoskin/volume_blend.h"
 
 namespace myoskin::python {
 
@@ -169,6 +171,83 @@ void bindCorrectives(py::module_& m) {
             return w;
           },
           py::arg("local_rotations"), "One weight per corrective from #B by 4 local rotations (bone_local_rotations).");
+  // ==========================================================================
+  // Volume keys
+  // ==========================================================================
+  m.def(
+      "compute_volume_keys",
+      [](const Character& c, const py::array_t<double, py::array::c_style | py::array::forcecast>& share,
+         const std::vector<double>& sampleDegrees, double maxOffset, double bandRadius, double minBlend,
+         const py::object& up) {
+        if (!c.hasWeights()) throw InputError("compute_volume_keys: character '" + c.name + "' has no skin weights");
+        if (share.ndim() != 1) throw InputError("share must be #V values");
+        Eigen::VectorXd s(share.shape(0));
+        std::copy(share.data(), share.data() + share.size(), s.data());
+        VolumeBlendOptions o;
+        o.bandRadius = bandRadius;
+        o.minBlend = minBlend;
+        if (!up.is_none()) {
+          const auto a = up.cast<std::array<double, 3>>();
+          o.up = Vec3(a[0], a[1], a[2]);
+          if (!o.up.allFinite() || o.up.norm() == 0.0) throw InputError("up must be a finite non-zero vector");
+        }
+        VolumeKeyOptions ko;
+        ko.sampleDegrees = sampleDegrees;
+        ko.maxOffset = maxOffset;
+        std::vector<VolumeKey> keys;
+        {
+          py::gil_scoped_release release;
+          keys = computeVolumeKeys(c.skeleton, c.weights, c.mesh, s, o, ko);
+        }
+        py::list rows;
+        for (const VolumeKey& k : keys) {
+          py::dict d;
+          d["bone"] = c.skeleton.bones[k.bone].name;
+          d["bone_index"] = k.bone;
+          d["vertices"] = py::array_t<int>(static_cast<py::ssize_t>(k.vertices.size()), k.vertices.data());
+          d["offsets"] = pointsToArray(k.offsets);
+          d["k1"] = k.k1;
+          d["k2"] = k.k2;
+          d["swing"] = py::make_tuple(k.swing.x(), k.swing.y());
+          d["axis"] = py::make_tuple(k.axis.x(), k.axis.y(), k.axis.z());
+          d["sample_degrees"] = k.sampleDegrees;
+          d["change_without"] = k.changeWithout;
+          d["change_with"] = k.changeWith;
+          rows.append(d);
+        }
+        return rows;
+      },
+      py::arg("character"), py::arg("share"), py::kw_only(),
+      py::arg("sample_degrees") = VolumeKeyOptions{}.sampleDegrees,
+      py::arg("max_offset") = VolumeKeyOptions{}.maxOffset, py::arg("band_radius") = VolumeBlendOptions{}.bandRadius,
+      py::arg("min_blend") = VolumeBlendOptions{}.minBlend, py::arg("up") = py::none(),
+      "Volume keys of the volume blend (share: compute_dqs_share's #V shares): one dict per real joint whose band "
+      "still loses volume as it bends (bone, bone_index, vertices, offsets #n by 3 in rest space at weight 1, k1, k2: "
+      "weight = clamp(s (k1 + k2 s), 0, 1) with s = x^2 + z^2 of the bone's local rotation quaternion, times the swing factor of a directional key: swing (x, z), zero for any swing; axis, sample_degrees "
+      "with the band's change_without and change_with the key).");
+  m.def(
+      "volume_key_weights",
+      [](const py::list& keys, const DoubleArray& localRotations) {
+        const std::vector<Eigen::Quaterniond> q = quaternionsOf(localRotations);
+        std::vector<double> out;
+        for (const auto& item : keys) {
+          const py::dict d = item.cast<py::dict>();
+          VolumeKey k;
+          k.bone = d["bone_index"].cast<int>();
+          k.k1 = d["k1"].cast<double>();
+          k.k2 = d["k2"].cast<double>();
+          if (d.contains("swing")) {
+            const auto sw = d["swing"].cast<std::array<double, 2>>();
+            k.swing = Eigen::Vector2d(sw[0], sw[1]);
+          }
+          if (k.bone < 0 || k.bone >= static_cast<int>(q.size()))
+            throw InputError("volume key of bone " + std::to_string(k.bone) + ": no local rotation for it");
+          out.push_back(volumeKeyWeight(k, q[static_cast<size_t>(k.bone)]));
+        }
+        return out;
+      },
+      py::arg("keys"), py::arg("local_rotations"),
+      "One weight per volume key (compute_volume_keys' dicts) from #B by 4 local rotations (bone_local_rotations).");
 }
 
 }  // namespace myoskin::python

@@ -9,6 +9,8 @@
 #pragma once
 #include <vector>
 
+#include <Eigen/Geometry>
+
 #include "myoskin/mesh.h"
 #include "myoskin/skeleton.h"
 #include "myoskin/skin_weights.h"
@@ -82,5 +84,59 @@ struct JointVolumeBlend {
 // [0, 1], minBlend in (0, 1], unblendedShare in [0, 1]).
 Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& skeletonWeights, const Mesh& skin,
                                 const VolumeBlendOptions& options = {}, std::vector<JointVolumeBlend>* joints = nullptr);
+
+// ============================================================================
+// Volume keys
+// ============================================================================
+
+// A joint's volume key (a shape key in Blender): rest-space offsets of the skin around a real joint, outward along
+// the rest normals, that give back the volume the blend still loses in the joint's band as it bends. Its weight
+// follows the swing of the joint's child bone, s = x^2 + z^2 = sin^2(swing / 2) of the bone's local rotation
+// quaternion (w, x, y, z) (twist about the bone moves nothing; Blender reads it with a driver on the bone's Local
+// Space quaternion):  weight = clamp(s (k1 + k2 s), 0, 1), in [0, 1] for every swing by construction. A directional
+// key (a limb's root: one per quarter of swing directions) is also multiplied by g = max(swing . lean, 0)^2 / |lean|^2,
+// lean = (xy - wz, yz + wx) the way the bone's Y axis leans in its rest frame's x and z; the four quarters' g sum to 1.
+struct VolumeKey {
+  int bone = -1;               // the joint's child bone (its local rotation drives the key)
+  std::vector<int> vertices;   // the skin vertices it moves, ascending
+  Points offsets;              // #vertices by 3, rest-space offsets at weight 1
+  double k1 = 0.0, k2 = 0.0;   // weight = s (k1 + k2 s)
+  Eigen::Vector2d swing = Eigen::Vector2d::Zero();  // unit (x, z) in the bone's rest frame; zero: any swing
+  // The fit: the swing axis the samples turn about (the reference flexion's; a limb root's quarters turn it about the
+  // bone by 90, 180, 270 degrees) and per sample flexion the band's volume change (relative to rest) without and
+  // with the key.
+  Vec3 axis = Vec3::Zero();
+  std::vector<double> sampleDegrees, changeWithout, changeWith;
+};
+
+struct VolumeKeyOptions {
+  // Flexions (degrees about each joint's reference flexion axis, VolumeBlendOptions) at which the key would keep
+  // the band's volume; the weight's two coefficients fit the amplitudes found there (least squares in s).
+  std::vector<double> sampleDegrees = {45.0, 90.0, 135.0};
+  // The largest offset, in body limb radii (the profile is the joint's blend b, 1 where the skin blends evenly across
+  // it, tapering to 0 at the band's edge).
+  double maxOffset = 1.0;
+};
+
+// One volume key per limb joint (a real joint, as computeDqsShare's, whose bone or the real joint above it has the Limb
+// role: shoulders, elbows, wrists, hips, knees, ankles, a horse's knees and hocks; a trunk or a digit bends over many
+// bones, each joint a little) whose band still loses volume under the volume blend
+// `share` (#V, computeDqsShare's) when the joint bends about its reference flexion axis. At each sample flexion the
+// amplitude is the one that keeps the band's cone volume (at most maxOffset limb radii), lowered until the band has
+// no more self-intersecting triangle pairs than without the key. Deterministic. Throws InputError on what
+// computeDqsShare refuses, a share of the wrong size or outside [0, 1], no samples or a sample outside (0, 180], or
+// maxOffset <= 0.
+std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWeights& skeletonWeights,
+                                         const Mesh& skin, const Eigen::VectorXd& share,
+                                         const VolumeBlendOptions& options = {},
+                                         const VolumeKeyOptions& keyOptions = {});
+
+// The key's weight for its bone's local rotation (boneLocalRotation in correctives.h; any norm).
+double volumeKeyWeight(const VolumeKey& key, const Eigen::Quaterniond& localRotation);
+
+// out = base + sum_k volumeKeyWeight(key k, localRotations[key k's bone]) offsets_k (base: #V by 3; out resized
+// once). Throws InputError when a key's vertex or bone is out of range.
+void applyVolumeKeys(const std::vector<VolumeKey>& keys, const std::vector<Eigen::Quaterniond>& localRotations,
+                     const Points& base, Points& out);
 
 }  // namespace myoskin

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <string>
 
 #include <Eigen/Geometry>
@@ -19,7 +20,9 @@ namespace myoskin {
 namespace {
 
 constexpr int kShareSteps = 100;  // shares tried: 0, 1/100, ..., 1
-constexpr double kRounding = 1e-9;  // band changes this small are rounding (a band no bend changes keeps share 1)
+constexpr double kLeanFloor = 1e-12;  // volumeKeyWeight: a lean this small is the rest pose (Blender's driver too)
+constexpr double kRounding = 1e-9;
+constexpr int kFoldShrinks = 12;  // volume keys: times a key shrinks by a fifth before it is dropped for folding the skin  // band changes this small are rounding (a band no bend changes keeps share 1)
 
 // ============================================================================
 // Checks
@@ -70,92 +73,6 @@ Points applyMaps(const VertexTransforms& maps, const Points& rest) {
       out(v, r) = maps(v, 4 * r) * rest(v, 0) + maps(v, 4 * r + 1) * rest(v, 1) + maps(v, 4 * r + 2) * rest(v, 2) +
                   maps(v, 4 * r + 3);
   return out;
-}
-
-// The joint at bone c's head: its band (bandRadius body limb radii) and share at the reference flexion about
-// flexionAxis (fills `out`; false when it blends no skin or has no band).
-bool measureJoint(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin, const VolumeBlendOptions& o,
-                  int c, double limbRadius, const Vec3& flexionAxis, const std::vector<char>& inSubtree,
-                  const Eigen::VectorXd& blend, JointVolumeBlend& out) {
-  const int nv = skin.numVertices();
-  const Vec3 joint = skeleton.bones[c].head;
-  int blended = 0;
-  for (int v = 0; v < nv; ++v) blended += blend[v] >= o.minBlend;
-  out.bone = c;
-  out.blendedVertices = blended;
-  out.radius = limbRadius;
-  if (blended == 0) return false;
-  // The band: local copies of its vertices, weights and triangles.
-  const double reach = o.bandRadius * limbRadius;
-  std::vector<int> local(nv, -1);
-  std::vector<int> ids;
-  for (int v = 0; v < nv; ++v)
-    if ((skin.vertices.row(v).transpose() - joint).norm() <= reach) {
-      local[v] = static_cast<int>(ids.size());
-      ids.push_back(v);
-    }
-  std::vector<Eigen::Vector3i> faces;
-  for (Eigen::Index f = 0; f < skin.triangles.rows(); ++f) {
-    const int a = local[skin.triangles(f, 0)], b = local[skin.triangles(f, 1)], d = local[skin.triangles(f, 2)];
-    if (a >= 0 && b >= 0 && d >= 0) faces.emplace_back(a, b, d);
-  }
-  out.bandTriangles = static_cast<int>(faces.size());
-  if (faces.empty()) return false;
-  const int n = static_cast<int>(ids.size());
-  Points rest(n, 3);
-  SkinWeights sub;
-  sub.joints.resize(n, w.influences());
-  sub.weights.resize(n, w.influences());
-  for (int i = 0; i < n; ++i) {
-    rest.row(i) = skin.vertices.row(ids[i]);
-    sub.joints.row(i) = w.joints.row(ids[i]);
-    sub.weights.row(i) = w.weights.row(ids[i]);
-  }
-  Triangles tris(static_cast<Eigen::Index>(faces.size()), 3);
-  for (size_t f = 0; f < faces.size(); ++f) tris.row(static_cast<Eigen::Index>(f)) = faces[f].transpose();
-  const int nb = skeleton.numBones();
-  SkinnerOptions linearOptions;
-  linearOptions.threads = 1;
-  SkinnerOptions dqOptions = linearOptions;
-  dqOptions.preserveVolume = true;
-  for (const Bone& b : skeleton.bones) dqOptions.jointRest.push_back(b.rest);
-  Skinner skinner(rest, sub, nb, linearOptions);
-  const double v0 = coneVolume(rest, tris, joint);
-  if (!(std::abs(v0) > 0.0)) return false;
-  // Band volume change for each tried share at the reference flexion.
-  Mat4 turn = Mat4::Identity();
-  turn.block<3, 3>(0, 0) = Eigen::AngleAxisd(o.bendDegrees * kPi / 180.0, flexionAxis).toRotationMatrix();
-  turn.block<3, 1>(0, 3) = joint - turn.block<3, 3>(0, 0) * joint;
-  std::vector<Mat4> transforms(nb, Mat4::Identity());
-  for (int b = 0; b < nb; ++b)
-    if (inSubtree[b]) transforms[b] = turn;
-  // In float64 (the skinner's per-vertex affine maps on the float64 rest positions): the shares then depend on the
-  // body, not on how its coordinates round (a character turned in space gets the same shares to 1e-9).
-  VertexTransforms maps;
-  skinner.vertexTransforms(transforms, maps);
-  const Points lin = applyMaps(maps, rest);
-  skinner.setOptions(dqOptions);
-  skinner.vertexTransforms(transforms, maps);
-  const Points dq = applyMaps(maps, rest);
-  std::vector<double> change(kShareSteps + 1);
-  for (int k = 0; k <= kShareSteps; ++k) {
-    const double s = static_cast<double>(k) / kShareSteps;
-    const Points p = (1.0 - s) * lin + s * dq;
-    change[k] = (coneVolume(p, tris, joint) - v0) / std::abs(v0);
-  }
-  // The largest share whose |change| is at most the smallest |change| of any share or keepTolerance x |linear's
-  // change| or kRounding (dual quaternions where they keep the volume well enough or lose it anyway).
-  double smallest = std::abs(change[0]);
-  for (double x : change) smallest = std::min(smallest, std::abs(x));
-  const double allowed = std::max({smallest, o.keepTolerance * std::abs(change[0]), kRounding});
-  int best = kShareSteps;
-  while (best > 0 && std::abs(change[best]) > allowed) --best;
-  out.share = static_cast<double>(best) / kShareSteps;
-  out.axis = flexionAxis;
-  out.linearChange = change[0];
-  out.dualQuatChange = change[kShareSteps];
-  out.blendChange = change[best];
-  return true;
 }
 
 // ============================================================================
@@ -225,18 +142,34 @@ BodyFrame bodyFrame(const Character& body, const Skeleton& joined, const std::ve
   return f;
 }
 
-}  // namespace
-
 // ============================================================================
-// Shares over the skin
+// Real joints
 // ============================================================================
 
-Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin,
-                                const VolumeBlendOptions& options, std::vector<JointVolumeBlend>* joints) {
-  validate(skeleton, w, skin, options);
+// One real joint (a bone with a parent, not a twist split, whose skin the skeleton blends across it).
+struct RealJoint {
+  int bone = -1;
+  Vec3 axis = Vec3::Zero();          // its reference flexion's rotation axis (unit)
+  Vec3 direction = Vec3::Zero();     // its bone's direction (unit)
+  bool limb = false;                 // a limb's joint: the segment below or above it is a limb's (Limb role)
+  bool limbRoot = false;             // a limb's root (shoulder, hip): its bone is a limb's, the bone above is not
+  bool keyOnly = false;              // a twist split where a limb begins by its role: volume keys, no share
+  std::vector<char> inSubtree;       // #B: the bones that turn with it
+  std::vector<int> blended;          // vertices with b >= minBlend
+  std::vector<double> blend;         // their b
+};
+
+// What both computeDqsShare and computeVolumeKeys need: the real joints with their flexion axes, the body's limb
+// radius, and per vertex whether it is blended across any joint or twist split or lies in a real joint's band.
+struct JointScan {
+  double limbRadius = 0.0;
+  std::vector<RealJoint> joints;
+  std::vector<char> crossed, nearJoint;
+};
+
+JointScan scanJoints(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin, const VolumeBlendOptions& options) {
   const int nv = skin.numVertices(), nb = skeleton.numBones();
-  if (joints) joints->clear();
-  Eigen::VectorXd shareSum = Eigen::VectorXd::Zero(nv), blendSum = Eigen::VectorXd::Zero(nv);
+  JointScan scan;
   Eigen::VectorXd total = Eigen::VectorXd::Zero(nv);
   for (int v = 0; v < nv; ++v)
     for (int k = 0; k < w.influences(); ++k)
@@ -248,15 +181,15 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
   const Skeleton joined = weightedSkeleton(body);  // tails at the continuing child's head (importers guess them)
   const std::vector<BoneRole> roles = characterBoneRoles(body);
   const std::vector<char> twist = twistSplits(joined, w);  // on the joined tails, as importers differ
-  const double limbRadius = bodyLimbRadius(body, roles);
+  scan.limbRadius = bodyLimbRadius(body, roles);
   const BodyFrame frame = bodyFrame(body, joined, roles, options.up);
   const Vec3 up = frame.up, left = frame.left, facing = frame.facing;
   auto direction = [&](int b) { return Vec3((joined.bones[b].tail - joined.bones[b].head).normalized()); };
   std::vector<char> inSubtree(nb);
   Eigen::VectorXd blend(nv);
-  std::vector<char> crossed(nv, 0);    // blended across any joint or twist split (b >= minBlend)
-  std::vector<char> nearJoint(nv, 0);  // in a real joint's band (bandRadius limb radii of its head)
-  const double reach = options.bandRadius * limbRadius;
+  scan.crossed.assign(nv, 0);    // blended across any joint or twist split (b >= minBlend)
+  scan.nearJoint.assign(nv, 0);  // in a real joint's band (bandRadius limb radii of its head)
+  const double reach = options.bandRadius * scan.limbRadius;
   for (int c = 0; c < nb; ++c) {
     if (skeleton.bones[c].parent < 0) continue;
     for (int b = 0; b < nb; ++b) inSubtree[b] = b == c || (skeleton.bones[b].parent >= 0 && inSubtree[skeleton.bones[b].parent]);
@@ -268,10 +201,14 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
         if (w.joints(v, k) >= 0 && inSubtree[w.joints(v, k)]) inside += w.weights(v, k);
       blend[v] = total[v] > kRestWeightThreshold ? 2.0 * std::min(inside, total[v] - inside) / total[v] : 0.0;
       anyBlend = anyBlend || blend[v] >= options.minBlend;
-      if (blend[v] >= options.minBlend) crossed[v] = 1;  // a twist split, or a joint even where not measured
-      if (!twist[c] && (skin.vertices.row(v).transpose() - skeleton.bones[c].head).norm() <= reach) nearJoint[v] = 1;
+      if (blend[v] >= options.minBlend) scan.crossed[v] = 1;  // a twist split, or a joint even where not measured
+      if (!twist[c] && (skin.vertices.row(v).transpose() - skeleton.bones[c].head).norm() <= reach) scan.nearJoint[v] = 1;
     }
-    if (!anyBlend || twist[c]) continue;
+    // A twist split is no joint, except where a limb begins by its role (MakeHuman's shoulder01 -> upperarm01: the
+    // twist analysis puts the real joint at shoulder01's head, animators swing upperarm01): volume keys only.
+    const int above = skeleton.bones[c].parent;
+    const bool limbStart = roles[c] == BoneRole::Limb && roles[above] != BoneRole::Limb;
+    if (!anyBlend || (twist[c] && !limbStart)) continue;
     // Flexion: the child swings forward (about d x facing); down a leg (downward bones, across twist splits) the
     // joints alternate from the leg's root: hip forward, knee backward, a horse's hock forward again; a child along
     // the facing (a foot) turns its tail down.
@@ -293,20 +230,378 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
       axis.normalize();
       if (d.dot(up) < -0.5 && downAbove % 2 == 1) axis = -axis;
     }
-    JointVolumeBlend report;
-    if (!measureJoint(skeleton, w, skin, options, c, limbRadius, axis, inSubtree, blend, report)) continue;
-    if (joints) joints->push_back(report);
+    RealJoint joint;
+    joint.bone = c;
+    joint.axis = axis;
+    joint.direction = d;
+    // The segment below the joint is a limb's when its bone or a bone continuing it across twist splits is (MakeHuman's
+    // shoulder01 -> upperarm01); above, when the real joint's bone is.
+    std::function<bool(int)> limbBelow = [&](int b) {
+      if (roles[b] == BoneRole::Limb) return true;
+      for (int x = 0; x < nb; ++x)
+        if (skeleton.bones[x].parent == b && twist[x] && limbBelow(x)) return true;
+      return false;
+    };
+    const bool parentLimb = realParent(c) >= 0 && roles[realParent(c)] == BoneRole::Limb;
+    joint.limb = limbBelow(c) || parentLimb;
+    joint.limbRoot = limbBelow(c) && !parentLimb;
+    joint.keyOnly = twist[c] != 0;
+    joint.inSubtree = inSubtree;
     for (int v = 0; v < nv; ++v)
       if (blend[v] >= options.minBlend) {
-        shareSum[v] += blend[v] * report.share;
-        blendSum[v] += blend[v];
+        joint.blended.push_back(v);
+        joint.blend.push_back(blend[v]);
       }
+    scan.joints.push_back(std::move(joint));
+  }
+  return scan;
+}
+
+// ============================================================================
+// Joint bands
+// ============================================================================
+
+// The skin within `reach` of a joint as local arrays: its vertices (ids into the skin), rest positions, skeleton
+// weights and the triangles whose three vertices lie in it.
+struct Band {
+  std::vector<int> ids;
+  Points rest;
+  SkinWeights weights;
+  Triangles triangles;
+};
+
+Band jointBand(const SkinWeights& w, const Mesh& skin, const Vec3& joint, double reach) {
+  const int nv = skin.numVertices();
+  Band band;
+  std::vector<int> local(nv, -1);
+  for (int v = 0; v < nv; ++v)
+    if ((skin.vertices.row(v).transpose() - joint).norm() <= reach) {
+      local[v] = static_cast<int>(band.ids.size());
+      band.ids.push_back(v);
+    }
+  std::vector<Eigen::Vector3i> faces;
+  for (Eigen::Index f = 0; f < skin.triangles.rows(); ++f) {
+    const int a = local[skin.triangles(f, 0)], b = local[skin.triangles(f, 1)], d = local[skin.triangles(f, 2)];
+    if (a >= 0 && b >= 0 && d >= 0) faces.emplace_back(a, b, d);
+  }
+  const int n = static_cast<int>(band.ids.size());
+  band.rest.resize(n, 3);
+  band.weights.joints.resize(n, w.influences());
+  band.weights.weights.resize(n, w.influences());
+  for (int i = 0; i < n; ++i) {
+    band.rest.row(i) = skin.vertices.row(band.ids[i]);
+    band.weights.joints.row(i) = w.joints.row(band.ids[i]);
+    band.weights.weights.row(i) = w.weights.row(band.ids[i]);
+  }
+  band.triangles.resize(static_cast<Eigen::Index>(faces.size()), 3);
+  for (size_t f = 0; f < faces.size(); ++f) band.triangles.row(static_cast<Eigen::Index>(f)) = faces[f].transpose();
+  return band;
+}
+
+// The skeleton transforms of a joint's child subtree turned about the joint by `degrees` about `axis` (unit).
+std::vector<Mat4> turnedSubtree(const Skeleton& skeleton, const RealJoint& joint, double degrees, const Vec3& axis) {
+  const Vec3 head = skeleton.bones[joint.bone].head;
+  Mat4 turn = Mat4::Identity();
+  turn.block<3, 3>(0, 0) = Eigen::AngleAxisd(degrees * kPi / 180.0, axis).toRotationMatrix();
+  turn.block<3, 1>(0, 3) = head - turn.block<3, 3>(0, 0) * head;
+  std::vector<Mat4> transforms(static_cast<size_t>(skeleton.numBones()), Mat4::Identity());
+  for (int b = 0; b < skeleton.numBones(); ++b)
+    if (joint.inSubtree[b]) transforms[b] = turn;
+  return transforms;
+}
+
+// Per band vertex the linear and the dual-quaternion affine maps (#n by 12 each) at a bend.
+void bandMaps(const Skeleton& skeleton, const Band& band, const std::vector<Mat4>& transforms, VertexTransforms& linear,
+              VertexTransforms& dualQuat) {
+  SkinnerOptions linearOptions;
+  linearOptions.threads = 1;
+  SkinnerOptions dqOptions = linearOptions;
+  dqOptions.preserveVolume = true;
+  for (const Bone& b : skeleton.bones) dqOptions.jointRest.push_back(b.rest);
+  Skinner skinner(band.rest, band.weights, skeleton.numBones(), linearOptions);
+  skinner.vertexTransforms(transforms, linear);
+  skinner.setOptions(dqOptions);
+  skinner.vertexTransforms(transforms, dualQuat);
+}
+
+// The joint's band (bandRadius body limb radii of its head) and its share at the reference flexion (fills `out`;
+// false when it has no band).
+bool measureJoint(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin, const VolumeBlendOptions& o,
+                  const RealJoint& joint, double limbRadius, JointVolumeBlend& out) {
+  const Vec3 head = skeleton.bones[joint.bone].head;
+  out.bone = joint.bone;
+  out.blendedVertices = static_cast<int>(joint.blended.size());
+  out.radius = limbRadius;
+  const Band band = jointBand(w, skin, head, o.bandRadius * limbRadius);
+  out.bandTriangles = static_cast<int>(band.triangles.rows());
+  if (band.triangles.rows() == 0) return false;
+  const double v0 = coneVolume(band.rest, band.triangles, head);
+  if (!(std::abs(v0) > 0.0)) return false;
+  // In float64 (the skinner's per-vertex affine maps on the float64 rest positions): the shares then depend on the
+  // body, not on how its coordinates round (a character turned in space gets the same shares to 1e-9).
+  VertexTransforms linearMaps, dqMaps;
+  bandMaps(skeleton, band, turnedSubtree(skeleton, joint, o.bendDegrees, joint.axis), linearMaps, dqMaps);
+  const Points lin = applyMaps(linearMaps, band.rest), dq = applyMaps(dqMaps, band.rest);
+  // Band volume change for each tried share at the reference flexion.
+  std::vector<double> change(kShareSteps + 1);
+  for (int k = 0; k <= kShareSteps; ++k) {
+    const double s = static_cast<double>(k) / kShareSteps;
+    const Points p = (1.0 - s) * lin + s * dq;
+    change[k] = (coneVolume(p, band.triangles, head) - v0) / std::abs(v0);
+  }
+  // The largest share whose |change| is at most the smallest |change| of any share or keepTolerance x |linear's
+  // change| or kRounding (dual quaternions where they keep the volume well enough or lose it anyway).
+  double smallest = std::abs(change[0]);
+  for (double x : change) smallest = std::min(smallest, std::abs(x));
+  const double allowed = std::max({smallest, o.keepTolerance * std::abs(change[0]), kRounding});
+  int best = kShareSteps;
+  while (best > 0 && std::abs(change[best]) > allowed) --best;
+  out.share = static_cast<double>(best) / kShareSteps;
+  out.axis = joint.axis;
+  out.linearChange = change[0];
+  out.dualQuatChange = change[kShareSteps];
+  out.blendChange = change[best];
+  return true;
+}
+
+}  // namespace
+
+// ============================================================================
+// Shares over the skin
+// ============================================================================
+
+Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin,
+                                const VolumeBlendOptions& options, std::vector<JointVolumeBlend>* joints) {
+  validate(skeleton, w, skin, options);
+  const int nv = skin.numVertices();
+  if (joints) joints->clear();
+  const JointScan scan = scanJoints(skeleton, w, skin, options);
+  Eigen::VectorXd shareSum = Eigen::VectorXd::Zero(nv), blendSum = Eigen::VectorXd::Zero(nv);
+  for (const RealJoint& joint : scan.joints) {
+    if (joint.keyOnly) continue;
+    JointVolumeBlend report;
+    if (!measureJoint(skeleton, w, skin, options, joint, scan.limbRadius, report)) continue;
+    if (joints) joints->push_back(report);
+    for (size_t i = 0; i < joint.blended.size(); ++i) {
+      shareSum[joint.blended[i]] += joint.blend[i] * report.share;
+      blendSum[joint.blended[i]] += joint.blend[i];
+    }
   }
   Eigen::VectorXd share(nv);
   for (int v = 0; v < nv; ++v)
     share[v] = blendSum[v] > 0.0 ? std::clamp(shareSum[v] / blendSum[v], 0.0, 1.0)
-                                 : (crossed[v] || nearJoint[v] ? 1.0 : options.unblendedShare);
+                                 : (scan.crossed[v] || scan.nearJoint[v] ? 1.0 : options.unblendedShare);
   return share;
+}
+
+// ============================================================================
+// Volume keys
+// ============================================================================
+
+namespace {
+
+// One joint's key for swings about `axis` (unit; `directional`: the key acts only on swings toward that side): the
+// offsets' profile and, per sample flexion, the amplitude that keeps the band's volume; then the weight's fit. False
+// when the band keeps its volume at every sample (no key).
+bool fitVolumeKey(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin, const Points& normals,
+                  const Eigen::VectorXd& share, const VolumeBlendOptions& o, const VolumeKeyOptions& ko,
+                  const RealJoint& joint, const Vec3& axis, bool directional, double limbRadius, VolumeKey& key) {
+  const Vec3 head = skeleton.bones[joint.bone].head;
+  const double reach = o.bandRadius * limbRadius;
+  const Band band = jointBand(w, skin, head, reach);
+  if (band.triangles.rows() == 0) return false;
+  const double v0 = coneVolume(band.rest, band.triangles, head);
+  if (!(std::abs(v0) > 0.0)) return false;
+  const int n = static_cast<int>(band.ids.size());
+  // Profile: the joint's blend b, tapered to 0 at the band's edge, times ((1 - n . side) / 2)^2 so the skin facing
+  // the way the limb bends (the crease, which folds) stays and the outer side swells, along the rest normal n, in
+  // limb radii.
+  std::vector<double> blendOf(static_cast<size_t>(skin.numVertices()), 0.0);
+  for (size_t i = 0; i < joint.blended.size(); ++i) blendOf[static_cast<size_t>(joint.blended[i])] = joint.blend[i];
+  const Vec3 side = axis.cross(joint.direction).normalized();
+  Points profile = Points::Zero(n, 3);
+  for (int i = 0; i < n; ++i) {
+    const double d = (band.rest.row(i).transpose() - head).norm() / reach;
+    const double taper = std::pow(std::max(0.0, 1.0 - d * d), 2);
+    const Vec3 normal = normals.row(band.ids[i]).transpose();
+    const double outer = 0.5 * (1.0 - normal.dot(side));
+    profile.row(i) = limbRadius * blendOf[static_cast<size_t>(band.ids[i])] * taper * outer * normal.transpose();
+  }
+  // The band bent by `degrees` about `axis` under the blend: its positions, how one unit of the profile moves it
+  // (each vertex's blended affine map is linear in its input), and (optional) its linear skin's positions.
+  auto bent = [&](double degrees, Points& base, Points& moved, Points* linear = nullptr) {
+    VertexTransforms linearMaps, dqMaps;
+    bandMaps(skeleton, band, turnedSubtree(skeleton, joint, degrees, axis), linearMaps, dqMaps);
+    base.resize(n, 3);
+    moved.resize(n, 3);
+    if (linear) *linear = applyMaps(linearMaps, band.rest);
+    for (int i = 0; i < n; ++i) {
+      const double s = share[band.ids[i]];
+      Eigen::Matrix<double, 3, 4> m;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) m(r, c) = (1.0 - s) * linearMaps(i, 4 * r + c) + s * dqMaps(i, 4 * r + c);
+      base.row(i) = (m.leftCols<3>() * band.rest.row(i).transpose() + m.col(3)).transpose();
+      moved.row(i) = (m.leftCols<3>() * profile.row(i).transpose()).transpose();
+    }
+  };
+  auto change = [&](const Points& p) { return (coneVolume(p, band.triangles, head) - v0) / std::abs(v0); };
+  const double amax = ko.maxOffset;
+  std::vector<double> s2, amplitude;
+  Points base, moved;
+  for (double degrees : ko.sampleDegrees) {
+    bent(degrees, base, moved);
+    const double before = change(base);
+    double a = 0.0;
+    if (before < 0.0) {
+      if (change(base + amax * moved) <= 0.0) {
+        a = amax;
+      } else {
+        double lo = 0.0, hi = amax;
+        for (int it = 0; it < 40; ++it) (change(base + 0.5 * (lo + hi) * moved) < 0.0 ? lo : hi) = 0.5 * (lo + hi);
+        a = hi;
+      }
+    }
+    const double half = std::sin(0.5 * degrees * kPi / 180.0);
+    s2.push_back(half * half);
+    amplitude.push_back(a);
+    key.sampleDegrees.push_back(degrees);
+    key.changeWithout.push_back(before);
+  }
+  // amplitude(s) = s (c1 + c2 s), least squares; a single s^2 term when the pair would go negative on [0, 1].
+  double s2s = 0.0, s3 = 0.0, s4 = 0.0, as = 0.0, as2 = 0.0;
+  for (size_t k = 0; k < s2.size(); ++k) {
+    const double x = s2[k];
+    s2s += x * x;
+    s3 += x * x * x;
+    s4 += x * x * x * x;
+    as += amplitude[k] * x;
+    as2 += amplitude[k] * x * x;
+  }
+  double c1 = 0.0, c2 = 0.0;
+  const double det = s2s * s4 - s3 * s3;
+  if (s2.size() >= 2 && std::abs(det) > 1e-12 * s2s * s4) {
+    c1 = (as * s4 - as2 * s3) / det;
+    c2 = (s2s * as2 - s3 * as) / det;
+  }
+  if (!(c1 >= 0.0 && c1 + c2 >= 0.0)) {
+    c1 = 0.0;
+    c2 = s4 > 0.0 ? as2 / s4 : 0.0;
+  }
+  double peak = c1 + c2;  // the largest amplitude over s in [0, 1]: at s = 1 or at the parabola's top
+  if (c2 < 0.0) {
+    const double top = -c1 / (2.0 * c2);
+    if (top > 0.0 && top < 1.0) peak = std::max(peak, top * (c1 + c2 * top));
+  }
+  if (!(peak > 1e-6)) return false;
+  key.k1 = c1 / peak;
+  key.k2 = c2 / peak;
+  auto weightAt = [&](double degrees) {
+    const double half = std::sin(0.5 * degrees * kPi / 180.0);
+    return std::clamp(half * half * (key.k1 + key.k2 * half * half), 0.0, 1.0);
+  };
+  // Never fold the skin more than the linear skin or the blend alone do, at any flexion in 15-degree steps up to the
+  // largest sample: the key shrinks by a fifth until it does not (dropped after kFoldShrinks).
+  const double largest = *std::max_element(key.sampleDegrees.begin(), key.sampleDegrees.end());
+  Points linear;
+  for (double degrees = 15.0; degrees <= largest + 1e-9 && peak > 0.0; degrees += 15.0) {
+    bent(degrees, base, moved, &linear);
+    const int folds = std::max(selfIntersections(base, band.triangles), selfIntersections(linear, band.triangles));
+    for (int it = 0; peak > 0.0 && selfIntersections(Points(base + weightAt(degrees) * peak * moved), band.triangles) > folds; ++it)
+      peak = it < kFoldShrinks ? 0.8 * peak : 0.0;
+  }
+  if (!(peak > 1e-6)) return false;
+  key.bone = joint.bone;
+  key.axis = axis;
+  if (directional) {  // the side the bone's tail swings to, in the bone's rest frame (x, z)
+    const Mat3 frame = skeleton.bones[joint.bone].rest.block<3, 3>(0, 0);
+    const Vec3 side = frame.transpose() * axis.cross(Vec3(frame.col(1).normalized()));
+    key.swing = Eigen::Vector2d(side.x(), side.z());
+    if (key.swing.norm() < 1e-9) return false;
+    key.swing.normalize();
+  }
+  std::vector<int> rows;  // band.ids ascend, so the key's vertices do too
+  for (int i = 0; i < n; ++i)
+    if (profile.row(i).squaredNorm() > 0.0) rows.push_back(i);
+  if (rows.empty()) return false;
+  key.offsets.resize(static_cast<Eigen::Index>(rows.size()), 3);
+  for (size_t i = 0; i < rows.size(); ++i) {
+    key.vertices.push_back(band.ids[rows[i]]);
+    key.offsets.row(static_cast<Eigen::Index>(i)) = peak * profile.row(rows[i]);
+  }
+  for (double degrees : key.sampleDegrees) {
+    bent(degrees, base, moved);
+    key.changeWith.push_back(change(base + weightAt(degrees) * peak * moved));
+  }
+  return true;
+}
+
+}  // namespace
+
+std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin,
+                                         const Eigen::VectorXd& share, const VolumeBlendOptions& options,
+                                         const VolumeKeyOptions& keyOptions) {
+  validate(skeleton, w, skin, options);
+  if (share.size() != skin.numVertices())
+    throw InputError("volume keys: " + std::to_string(share.size()) + " shares for " +
+                     std::to_string(skin.numVertices()) + " vertices");
+  for (Eigen::Index v = 0; v < share.size(); ++v)
+    if (!(share[v] >= 0.0 && share[v] <= 1.0))
+      throw InputError("volume keys: share of vertex " + std::to_string(v) + " is not in [0, 1]");
+  if (keyOptions.sampleDegrees.empty()) throw InputError("volume keys: no sample flexion");
+  for (double d : keyOptions.sampleDegrees)
+    if (!(d > 0.0 && d <= 180.0))
+      throw InputError("volume keys: sample flexions must be in (0, 180] degrees, got " + std::to_string(d));
+  if (!(keyOptions.maxOffset > 0.0 && std::isfinite(keyOptions.maxOffset)))
+    throw InputError("volume keys: maxOffset must be > 0, got " + std::to_string(keyOptions.maxOffset));
+  const JointScan scan = scanJoints(skeleton, w, skin, options);
+  const Points normals = vertexNormals(skin.vertices, skin.triangles);
+  std::vector<VolumeKey> keys;
+  for (const RealJoint& joint : scan.joints) {
+    if (!joint.limb) continue;
+    // A limb's root (a ball joint) swings every way: one directional key per quarter (flexion, and that axis turned
+    // about the bone by 90, 180 and 270 degrees); elsewhere one key for any swing.
+    for (int quarter = 0; quarter < (joint.limbRoot ? 4 : 1); ++quarter) {
+      const Vec3 axis = Eigen::AngleAxisd(0.5 * kPi * quarter, joint.direction) * joint.axis;
+      VolumeKey key;
+      if (fitVolumeKey(skeleton, w, skin, normals, share, options, keyOptions, joint, axis, joint.limbRoot,
+                       scan.limbRadius, key))
+        keys.push_back(std::move(key));
+    }
+  }
+  return keys;
+}
+
+double volumeKeyWeight(const VolumeKey& key, const Eigen::Quaterniond& localRotation) {
+  const double n2 = localRotation.squaredNorm();
+  if (!(n2 > 0.0)) return 0.0;
+  const Eigen::Quaterniond q(localRotation.coeffs() / std::sqrt(n2));
+  const double s = q.x() * q.x() + q.z() * q.z();
+  const double weight = std::clamp(s * (key.k1 + key.k2 * s), 0.0, 1.0);
+  if (key.swing.squaredNorm() == 0.0) return weight;
+  // The bone's Y axis leans by (a, c) / 2 in its rest frame's x and z (u(q) in correctives.h).
+  const double a = q.x() * q.y() - q.w() * q.z(), c = q.y() * q.z() + q.w() * q.x();
+  const double toward = std::max(key.swing.x() * a + key.swing.y() * c, 0.0);
+  return weight * toward * toward / std::max(a * a + c * c, kLeanFloor);
+}
+
+void applyVolumeKeys(const std::vector<VolumeKey>& keys, const std::vector<Eigen::Quaterniond>& localRotations,
+                     const Points& base, Points& out) {
+  out = base;
+  for (size_t k = 0; k < keys.size(); ++k) {
+    const VolumeKey& key = keys[k];
+    if (key.bone < 0 || key.bone >= static_cast<int>(localRotations.size()))
+      throw InputError("volume key " + std::to_string(k) + ": bone " + std::to_string(key.bone) + " has no rotation");
+    if (key.offsets.rows() != static_cast<Eigen::Index>(key.vertices.size()) || key.offsets.cols() != 3)
+      throw InputError("volume key " + std::to_string(k) + ": offsets must be #vertices by 3");
+    const double weight = volumeKeyWeight(key, localRotations[static_cast<size_t>(key.bone)]);
+    if (weight == 0.0) continue;
+    for (size_t i = 0; i < key.vertices.size(); ++i) {
+      const int v = key.vertices[i];
+      if (v < 0 || v >= base.rows())
+        throw InputError("volume key " + std::to_string(k) + ": vertex " + std::to_string(v) + " outside the skin");
+      out.row(v) += weight * key.offsets.row(static_cast<Eigen::Index>(i));
+    }
+  }
 }
 
 }  // namespace myoskin
