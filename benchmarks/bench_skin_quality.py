@@ -29,8 +29,8 @@ characters = [
 ]
 anchored_rows = []
 print(f"{'character':24s} {'joint':20s} {'LBS band':>9s} {'DQS band':>9s} {'Blender DQS':>11s} {'Myoskin':>9s} "
-      f"{'Myoskin+PV':>10s} {'Myoskin+VB':>10s} {'bulge over LBS':>22s} {'+PV over LBS':>12s} {'+PV over DQS':>12s} "
-      f"{'crossings LBS/DQS/Myo/Myo+PV/Myo+VB':>36s}")
+      f"{'Myoskin+PV':>10s} {'Myoskin+VB':>10s} {'VB+keys':>8s} {'bulge over LBS':>22s} {'+PV over LBS':>12s} {'+PV over DQS':>12s} "
+      f"{'crossings LBS/DQS/Myo/Myo+PV/Myo+VB/VB+keys':>44s}")
 for name, relative, joints, facing in characters:
     if relative is None:
         character, _truth = core.make_synthetic_body(seed=21)
@@ -46,10 +46,10 @@ for name, relative, joints, facing in characters:
         anchored_rows.append((name, row))
         print(f"{name[:24]:24s} {row['label']:20s} {100 * row['lbs']:+8.1f}% {100 * row['dqs']:+8.1f}% "
               f"{100 * row['blender_dqs']:+10.1f}% {100 * row['myoskin']:+8.1f}% {100 * row['myoskin_pv']:+9.1f}% "
-              f"{100 * row['myoskin_vb']:+9.1f}% "
+              f"{100 * row['myoskin_vb']:+9.1f}% {100 * row['myoskin_vk']:+7.1f}% "
               f"{1000 * row['bulge']:7.1f} mm ({row['bulge'] / row['limb_radius']:.3f} r) {1000 * row['bulge_pv']:9.1f} mm {1000 * row['bulge_pv_over_dqs']:9.1f} mm "
               f"{row['crossings_lbs']:>15d}/{row['crossings_dqs']}/{row['crossings_myoskin']}/{row['crossings_myoskin_pv']}"
-              f"/{row['crossings_myoskin_vb']}")
+              f"/{row['crossings_myoskin_vb']}/{row['crossings_myoskin_vk']}")
     print(f"{name}: {len(muscles)} muscles, measured in {time.perf_counter() - start:.1f} s")
 print()
 print(f"{'character':24s} {'joint':20s} {'LBS band':>9s} {'Myoskin+PV':>10s} {'anchored':>9s} {'anchored bulge over LBS':>24s} "

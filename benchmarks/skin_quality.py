@@ -149,6 +149,16 @@ def band_triangles(rest, triangles, joint_rest, radius):
     return inside[triangles].all(1)
 
 
+def with_volume_keys(core, character, rest, keys, pose):
+    """#V by 3: the rest skin plus each volume key (compute_volume_keys) at its weight for `pose` (what Blender's shape
+    keys give the Armature modifier)."""
+    out = np.array(rest, dtype=np.float64)
+    weights = core.volume_key_weights(keys, np.asarray(core.bone_local_rotations(character, pose)))
+    for key, weight in zip(keys, weights):
+        out[np.asarray(key["vertices"])] += weight * np.asarray(key["offsets"])
+    return out
+
+
 def _best_time(f, repeats=5):
     import time
     best = float("inf")
@@ -161,9 +171,10 @@ def _best_time(f, repeats=5):
 
 def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 0.0, 1.0), anchored=False,
             share_options=None):
-    """Per joint: dict(label, lbs, dqs, blender_dqs, myoskin, myoskin_pv, myoskin_vb band changes, bulge and bulge_pv
-    (m, over LBS), bulge_pv_over_dqs (m, over blender_dqs), limb_radius). myoskin_vb is the volume blend (the hybrid
-    weights skinned (1 - s) linear + s dual quaternions, s = compute_dqs_share(character, **share_options)). blender_dqs is the core's preserve-volume skinner on the skeleton weights
+    """Per joint: dict(label, lbs, dqs, blender_dqs, myoskin, myoskin_pv, myoskin_vb, myoskin_vk band changes, bulge,
+    bulge_pv, bulge_vb, bulge_vk (m, over LBS), bulge_pv_over_dqs (m, over blender_dqs), limb_radius). myoskin_vb is the
+    volume blend (the hybrid weights skinned (1 - s) linear + s dual quaternions, s = compute_dqs_share(character,
+    **share_options)); myoskin_vk the same with its volume keys (compute_volume_keys: what Bind gives). blender_dqs is the core's preserve-volume skinner on the skeleton weights
     (Blender's DQS, a cross-check of the numpy dqs); myoskin_pv the same skinner on the hybrid weights. With
     `anchored`: also anchored (band change), bulge_anchored (m, over LBS), crossings_anchored, and the best time per
     frame of the anchored skin (ms_anchored) and of Equation 3 (ms_eq3: rig, transforms and the skinner, built once)."""
@@ -181,6 +192,7 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
     bone_rest = np.asarray(character.bone_rest)
     combined_rest = core.combined_rest_matrices(character, rig)
     share = np.asarray(core.compute_dqs_share(character, **(share_options or {})))
+    keys = core.compute_volume_keys(character, share)
     rows = []
     for label, bone, hinge, upper, direction, degrees in joints:
         if bone not in names:
@@ -195,8 +207,10 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
         blender_dq = np.asarray(core.skin(rest, sj, sw, skel, preserve_volume=True, rest_matrices=bone_rest), float)
         myo_pv = np.asarray(core.skin(rest, hj, hw, full, preserve_volume=True, rest_matrices=combined_rest), float)
         myo_vb = np.asarray(core.skin(rest, hj, hw, full, dqs_share=share, rest_matrices=combined_rest), float)
+        myo_vk = np.asarray(core.skin(with_volume_keys(core, character, rest, keys, pose), hj, hw, full,
+                                      dqs_share=share, rest_matrices=combined_rest), float)
         methods = [("lbs", lbs), ("dqs", dq), ("blender_dqs", blender_dq), ("myoskin", myo), ("myoskin_pv", myo_pv),
-                   ("myoskin_vb", myo_vb)]
+                   ("myoskin_vb", myo_vb), ("myoskin_vk", myo_vk)]
         timing = {}
         if anchored_skin is not None:
             anch = anchored_skin.evaluate(pose)
@@ -220,7 +234,7 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
         at_rest = core.self_intersections(rest, tris, mask)
         crossings = {"crossings_" + k: core.self_intersections(v, tris, mask) - at_rest
                      for k, v in (("lbs", lbs), ("dqs", blender_dq), ("myoskin", myo), ("myoskin_pv", myo_pv),
-                                  ("myoskin_vb", myo_vb))
+                                  ("myoskin_vb", myo_vb), ("myoskin_vk", myo_vk))
                      + ((("anchored", anch),) if anchored_skin is not None else ())}
         upper_ids = [names.index(u) for u in upper if u in names]
         dominant = sj[np.arange(len(sj)), np.argmax(sw, axis=1)]
@@ -234,6 +248,7 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
         dq_normals = np.asarray(core.vertex_normals(blender_dq, tris))
         extra = dict(bulge_anchored=bulge_of(anch)) if anchored_skin is not None else {}
         rows.append(dict(label=label, bulge=bulge_of(myo), bulge_pv=bulge_of(myo_pv), bulge_vb=bulge_of(myo_vb),
+                         bulge_vk=bulge_of(myo_vk),
                          bulge_pv_over_dqs=bulge_of(myo_pv, blender_dq, dq_normals), limb_radius=limb_radius, **band,
                          **crossings, **extra, **timing))
     return rows

@@ -23,6 +23,7 @@
 #include <nlohmann/json.hpp>
 
 #include "myoskin/anchored_skin.h"
+#include "myoskin/correctives.h"
 #include "myoskin/deformation.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
@@ -96,8 +97,9 @@ void usage(std::ostream& out) {
          "          (Schneider & Wilhelms 1998) instead of Equation 3 (eq3, the default);\n"
          "          --preserve-volume blends the joints as dual quaternions (Blender's Preserve Volume; scaled\n"
          "          joints as Blender 4.x/5.x do, or --dq-scale blended as Blender 3.x); --volume-blend mixes\n"
-         "          the linear and the dual-quaternion skin per vertex so joints keep their volume (the add-on's\n"
-         "          Volume Blend: the two Armature modifiers Bind adds); pose\n"
+         "          the linear and the dual-quaternion skin per vertex and adds the joints' volume keys, so joints\n"
+         "          keep their volume (the add-on's Volume Blend: the shape keys and two Armature modifiers Bind\n"
+         "          adds); pose\n"
          "          files: {\"bones\": {name: {\"rotation_quaternion\": [w,x,y,z]}}} or {\"frames\": [...]}\n"
          "  simulate CHARACTER --pose SEQUENCE.json -o out.pc2 [--muscles M.json] [--jiggle] [--filter]\n"
          "          [--sculpt SCULPT.obj [--sculpt-frame F]] [--frames A-B] [--state-in S.json] [--state-out S.json]\n"
@@ -373,6 +375,7 @@ struct BoundSkin {
   SkinWeights weights;  // what the skinner skins with (combined with --muscles, else the skeleton's)
   SkinnerOptions options;
   std::shared_ptr<Skinner> skinner;
+  std::vector<VolumeKey> volumeKeys;  // --volume-blend: the joints' volume keys (shape keys in Blender)
 };
 
 // Loads and binds from the command's arguments (--muscles, --dominance, --threads, --preserve-volume,
@@ -413,6 +416,7 @@ BoundSkin bindFromArgs(const Args& args, const std::string& command, const std::
   if (volumeBlend) {  // shares from the skeleton weights; the joints' rest frames shape the dual-quaternion part
     const Eigen::VectorXd share = computeDqsShare(c.skeleton, c.weights, c.mesh);
     b.options.dqsShare.assign(share.data(), share.data() + share.size());
+    b.volumeKeys = computeVolumeKeys(c.skeleton, c.weights, c.mesh, share);
   }
   if (b.options.preserveVolume || volumeBlend) {
     if (b.rig) {
@@ -463,22 +467,39 @@ int cmdDeform(const Args& args) {
       skeletonTransforms(c.skeleton, pose, transforms);
     }
   };
+  // The rest skin with the volume keys' weighted offsets of a pose added (as Blender's shape keys come before its
+  // Armature modifiers); false when no key moves anything there (the skinner's own rest skin).
+  std::vector<Eigen::Quaterniond> localRotations;
+  Points keyed;
+  auto keysMove = [&](const Pose& pose) {
+    if (b.volumeKeys.empty()) return false;
+    boneLocalRotations(c.skeleton, pose, localRotations);
+    applyVolumeKeys(b.volumeKeys, localRotations, c.mesh.vertices, keyed);
+    return keyed != c.mesh.vertices;
+  };
   if (pc2) {
     PC2Writer writer(out, c.mesh.numVertices(), static_cast<float>(poses.startFrame), 1.0f);
     PointsF frame;
     for (const Pose& pose : poses.frames) {
       transformsFor(pose);
-      b.skinner->deform(transforms, frame);
+      if (keysMove(pose))
+        frame = skin(keyed, b.weights, transforms, b.options).cast<float>();
+      else
+        b.skinner->deform(transforms, frame);
       writer.writeFrame(frame);
     }
     writer.close();
   } else {
     Points positions;
     transformsFor(poses.frames[0]);
-    b.skinner->deform(transforms, positions);
+    if (keysMove(poses.frames[0]))
+      positions = skin(keyed, b.weights, transforms, b.options);
+    else
+      b.skinner->deform(transforms, positions);
     writeObj(out, positions, c.mesh.triangles);
   }
-  const char* mode = !b.options.dqsShare.empty() ? ", volume blend" : b.options.preserveVolume ? ", preserve volume" : "";
+  const std::string keys = ", volume blend with " + std::to_string(b.volumeKeys.size()) + " volume keys";
+  const char* mode = !b.options.dqsShare.empty() ? keys.c_str() : b.options.preserveVolume ? ", preserve volume" : "";
   if (rig)
     std::printf("deformed %s (%d vertices, %d bones + %d muscle joints of %d muscles%s): %zu frame(s) -> %s\n",
                 c.name.c_str(), c.mesh.numVertices(), c.skeleton.numBones(), rig->numJoints(), rig->numMuscles(),

@@ -99,7 +99,12 @@ def test_cli_deform_volume_blend_matches_the_module(core, tmp_path):
     t = core.skinning_transforms(character, pose, rig, rig.evaluate(pose)["joint_matrices"])
     rest = core.combined_rest_matrices(character, rig)
     share = core.compute_dqs_share(character)
-    expected = core.skin(character.vertices, joints, weights, t, dqs_share=share, rest_matrices=rest)
+    keys = core.compute_volume_keys(character, share)
+    assert keys, "the generated arm's elbow gets a volume key"
+    assert f"volume blend with {len(keys)} volume keys" in r.stdout
+    keyed = skin_quality.with_volume_keys(core, character, character.vertices, keys, pose)
+    assert np.abs(keyed - np.asarray(character.vertices)).max() > 0.0  # the elbow's key acts at 120 degrees
+    expected = core.skin(keyed, joints, weights, t, dqs_share=share, rest_matrices=rest)
     assert np.abs(frames[0] - character.vertices).max() < 1e-6
     assert np.abs(frames[1] - expected).max() < 1e-5
     r = run_cli("deform", str(tmp_path / "arm.obj"), "--pose", str(tmp_path / "seq.json"), "-o",
