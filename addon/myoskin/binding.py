@@ -3,14 +3,14 @@
 combined weights, the Armature modifier), the skin's weight backup and the bind record
 "<armature>.bind.json" that live update rebuilds from. No handler work here: bind() and unbind() drop the
 runtime's cached rig, and after bind() the caller poses the new joints (live.update_armature).
-Imports downward only: state, blender_io, rig_io, muscle_io, core_loader, runtime."""
+Imports downward only: state, blender_io, rig_io, muscle_io, core_loader, runtime, volume_keys."""
 import hashlib
 import json
 
 import bpy
 import numpy as np
 
-from . import blender_io, core_loader, core_skin, muscle_io, rig_io, runtime
+from . import blender_io, core_loader, core_skin, muscle_io, rig_io, runtime, volume_keys
 from .state import rig_skins, rig_state, set_rig_skins
 
 # ------------------------------------------------------------------------------------------------
@@ -258,9 +258,22 @@ def add_volume_blend(skin, arm, share):
     return mod
 
 
+def add_volume_keys(core, character, combined, skins, arm, share):
+    """The volume keys of the combined character (compute_volume_keys on Bind's shares) as driven shape keys on each
+    mesh they reach (volume_keys.write). Returns the number of shape keys added."""
+    keys = core.compute_volume_keys(character, share)
+    per_key = []
+    for key in keys:
+        full = np.zeros((character.num_vertices, 3))
+        full[np.asarray(key["vertices"], dtype=np.int64)] = np.asarray(key["offsets"])
+        per_key.append(combined.split(full))
+    return sum(volume_keys.write(skin, arm, keys, [pieces[m] for pieces in per_key]) for m, skin in enumerate(skins))
+
+
 def _switch_volume_blend_off(skin, arm):
     """Remove the volume blend's second modifier and linear group and give the first modifier its whole skin back
-    (the share group stays)."""
+    (the share group and the volume keys stay, muted)."""
+    volume_keys.set_muted(skin, True)
     mod = volume_blend_modifier(skin, arm)
     if mod is not None:
         skin.modifiers.remove(mod)
@@ -276,6 +289,7 @@ def remove_volume_blend(skin, arm):
     """Unbind: remove the volume blend's modifier, share group and linear group, and give the first modifier its
     whole skin back (its Preserve Volume is restored by the caller from the bind record)."""
     _switch_volume_blend_off(skin, arm)
+    volume_keys.remove(skin)
     group = skin.vertex_groups.get(VOLUME_BLEND_GROUP)
     if group is not None:
         skin.vertex_groups.remove(group)
@@ -340,9 +354,12 @@ def bind(context, skins, arm):
         else:
             preserve_volume_before[skin.name] = bool(mod.use_deform_preserve_volume)
         mod.use_deform_preserve_volume = state.preserve_volume
-    if volume_blend:  # the shares, split back per mesh
+    for skin in skins:  # a Bind again replaces the keys of the last one
+        volume_keys.remove(skin)
+    if volume_blend:  # the shares and the volume keys, split back per mesh
         for skin, mesh_share in zip(skins, combined.split(share)):
             add_volume_blend(skin, arm, np.asarray(mesh_share).ravel())
+        add_volume_keys(core, character, combined, skins, arm, share)
     core_skin_was = {}
     if state.deformer == 'ANCHORED':  # the core moves these meshes (live.py); their Armature modifiers rest
         for skin in skins:
@@ -404,6 +421,7 @@ def apply_volume_blend(arm):
                 waiting.append(skin.name)
             elif volume_blend_modifier(skin, arm) is None:
                 add_volume_blend(skin, arm, share)
+            volume_keys.set_muted(skin, False)
             continue
         _switch_volume_blend_off(skin, arm)
         first.use_deform_preserve_volume = state.preserve_volume

@@ -57,7 +57,8 @@ def core_skin(arm, skin, preserve_volume, share=None):
                                  joint_matrices @ np.linalg.inv(np.asarray(rig.rig.bind_matrices))])
     rest = io.mesh_vertices(skin.data)
     bulge = float(np.abs(np.linalg.norm(joint_matrices[:, :3, :3], axis=1) - 1.0).max())
-    if share is not None:
+    if share is not None:  # the volume keys (shape keys before the modifiers) at the core's weights for this pose
+        rest = rest + volume_key_offsets(arm, skin, rig, pose)
         return core().skin(rest, joints, weights, transforms, dqs_share=share,
                            rest_matrices=core().combined_rest_matrices(rig.character, rig.rig),
                            dq_scale=module("binding").dq_scale()), bulge
@@ -66,6 +67,27 @@ def core_skin(arm, skin, preserve_volume, share=None):
     return core().skin(rest, joints, weights, transforms, preserve_volume=True,
                        rest_matrices=core().combined_rest_matrices(rig.character, rig.rig),
                        dq_scale=module("binding").dq_scale()), bulge
+
+
+def volume_key_weights(skin, rig, pose):
+    """{shape key name: the core's weight (volume_key_weights) for `pose`} of the volume keys Bind stored on the mesh."""
+    entries = module("volume_keys").stored(skin)
+    if not entries:
+        return {}
+    names = list(rig.character.bone_names)
+    keys = [dict(e, bone_index=names.index(e["bone"])) for e in entries]
+    weights = core().volume_key_weights(keys, np.asarray(core().bone_local_rotations(rig.character, pose)))
+    return {e["name"]: w for e, w in zip(entries, weights)}
+
+
+def volume_key_offsets(arm, skin, rig, pose):
+    """#V by 3 (mesh space): the volume keys' offsets at the core's weights for `pose`."""
+    to_mesh = np.linalg.inv(module("blender_io").mesh_to_armature_matrix(skin, arm))[:3, :3]
+    offsets = module("volume_keys").offsets_by_key(skin, arm)
+    out = np.zeros((len(skin.data.vertices), 3))
+    for name, weight in volume_key_weights(skin, rig, pose).items():
+        out += weight * offsets[name] @ to_mesh.T
+    return out
 
 
 def set_pose(arm, rotations, scales=None):
@@ -198,6 +220,8 @@ def test_volume_blend_bind_writes_the_group_and_a_second_modifier_and_blender_eq
     share = binding.read_share_group(skin)
     assert share is not None and len(share) == len(skin.data.vertices)
     assert share.min() >= 0.0 and share.max() <= 1.0 and share.max() > 0.0
+    keys = module("volume_keys").stored(skin)
+    assert keys and all(k["name"] in skin.data.shape_keys.key_blocks for k in keys), keys
     size = size_of(skin)
     rest = module("blender_io").mesh_vertices(skin.data)
     rest_err = float(np.abs(evaluated(skin) - rest).max()) / size
@@ -216,6 +240,18 @@ def test_volume_blend_bind_writes_the_group_and_a_second_modifier_and_blender_eq
             linear, _ = core_skin(arm, skin, False)
             dq, _ = core_skin(arm, skin, True)
             err = float(np.abs(blender - expected).max()) / size
+            live = module("live")
+            rig = live.live_rig(arm)
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            core_weights = volume_key_weights(skin, rig, live.evaluated_pose(arm, rig, depsgraph))
+            blocks = skin.data.shape_keys.evaluated_get(depsgraph).key_blocks
+            driver_err = max(abs(blocks[n].value - w) for n, w in core_weights.items())
+            acting = max(core_weights.values())
+            print(f"  {label}, {name}: volume keys' drivers vs core weights {driver_err:.1e} (largest weight "
+                  f"{acting:.3f})")
+            assert driver_err < 1e-6, driver_err
+            if name == "elbow 120":
+                assert acting > 0.1, "the elbow's volume key should act at 120 degrees"
             print(f"  {label}, {name}: Blender volume blend vs core {err:.2e} of the size (vs linear "
                   f"{np.abs(blender - linear).max() / size:.2e}, vs DQS {np.abs(blender - dq).max() / size:.2e})")
             errors.append(err)
@@ -327,6 +363,7 @@ def test_volume_blend_unbind_restores_the_character_exactly_and_pc2_equals_blend
     assert bpy.ops.myoskin.unbind() == {'FINISHED'}
     assert binding.volume_blend_modifier(skin, arm) is None
     assert character_snapshot(skin) == before
+    assert skin.data.shape_keys is None, "Unbind leaves the volume keys (and the Basis it added)"
 
 
 def test_a_rig_bound_before_the_default_changed_keeps_its_linear_mode_on_load():

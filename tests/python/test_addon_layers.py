@@ -18,7 +18,7 @@ LAYERS = {
     # core data: the properties stored in the .blend
     "state": 2,
     # muscle and rig services
-    "muscle_io": 3, "binding": 3, "core_skin": 2, "correctives": 3, "dynamics": 3,
+    "muscle_io": 3, "binding": 3, "core_skin": 2, "volume_keys": 2, "correctives": 3, "dynamics": 3,
     # runtime: application handlers and live update
     "live": 4, "handlers": 4,
     # operators, panels, preferences, the batch entry point

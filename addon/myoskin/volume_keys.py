@@ -1,0 +1,149 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The volume blend's volume keys in Blender: one shape key per key the core computed (compute_volume_keys: rest-space
+offsets around a limb joint that give back the volume its band still loses as it bends), its value driven natively by
+the joint's child bone (a simple expression of the bone's Local Space quaternion, no Python):
+
+    value = s (k1 + k2 s) [x max(sx (xy - wz) + sz (yz + wx), 0)^2 / max((xy - wz)^2 + (yz + wx)^2, 1e-12)],
+    s = x^2 + z^2,
+
+the bracket only for a directional key (a limb's root: one key per quarter of swing directions). Shape keys come
+before the Armature modifiers, so Blender skins the keyed rest exactly as the core does (volume_key_weights, then the
+skinner); Bake PC2 and the correctives read them through the evaluated shape key mix.
+
+The mesh keeps what it needs to undo and to check: ID property KEYS_PROPERTY, a list of {name, bone, k1, k2, swing}
+per key Bind added, and ADDED_BASIS when Bind added the Basis key itself.
+
+Layer: service (imports blender_io only)."""
+
+import numpy as np
+
+from . import blender_io
+
+KEYS_PROPERTY = "myoskin_volume_keys"
+ADDED_BASIS = "myoskin_volume_keys_added_basis"
+KEY_PREFIX = "myoskin_volume."
+LEAN_FLOOR = "0.000000000001"  # the core's kLeanFloor (1e-12), written out: simple expressions take no exponent
+
+
+def _number(x):
+    text = f"{float(x):.15f}".rstrip("0").rstrip(".")
+    return text if text not in ("", "-0") else "0"
+
+
+def weight_expression(k1, k2, swing):
+    """The driver's simple expression on the quaternion variables w, x, y, z (volumeKeyWeight in the core)."""
+    s = "(x*x+z*z)"
+    expression = f"{s}*({_number(k1)}+{_number(k2)}*{s})"
+    if swing is not None and (swing[0] != 0.0 or swing[1] != 0.0):
+        a, c = "(x*y-w*z)", "(y*z+w*x)"
+        expression += (f"*pow(max({_number(swing[0])}*{a}+{_number(swing[1])}*{c},0),2)"
+                       f"/max({a}*{a}+{c}*{c},{LEAN_FLOOR})")
+    return expression.replace("+-", "-")
+
+
+def stored(skin):
+    """The volume keys Bind added to `skin` (a list of dicts), [] without any."""
+    return [dict(e) for e in skin.get(KEYS_PROPERTY, [])]
+
+
+def _key_names(keys):
+    """One shape key name per core key: myoskin_volume.<bone> (directional keys: .1, .2, ... per bone)."""
+    names, seen = [], {}
+    for key in keys:
+        bone = key["bone"]
+        seen[bone] = seen.get(bone, 0) + 1
+        names.append(KEY_PREFIX + bone + (f".{seen[bone]}" if any(k["bone"] == bone for k in keys if k is not key)
+                                          else ""))
+    return names
+
+
+def write(skin, arm, keys, offsets):
+    """Add a driven shape key per core key that moves this mesh: `keys` (compute_volume_keys' dicts) and `offsets`
+    (one #V by 3 array per key: this mesh's vertices, armature space; all zero where the key does not reach it).
+    Returns the number of shape keys added."""
+    entries = []
+    to_arm = blender_io.mesh_to_armature_matrix(skin, arm)
+    to_mesh = np.linalg.inv(to_arm[:3, :3])
+    added_basis = False
+    for key, name, moves in zip(keys, _key_names(keys), offsets):
+        moves = np.asarray(moves, dtype=np.float64)
+        if not np.any(moves):
+            continue
+        if arm.data.bones.get(key["bone"]) is None:
+            raise ValueError(f"Volume key of bone '{key['bone']}': armature '{arm.name}' has no such bone")
+        if skin.data.shape_keys is None:
+            skin.shape_key_add(name="Basis", from_mix=False)
+            added_basis = True
+        block = skin.shape_key_add(name=name, from_mix=False)
+        basis = np.empty(len(skin.data.vertices) * 3, dtype=np.float32)
+        block.relative_key.data.foreach_get("co", basis)
+        co = basis.reshape(-1, 3).astype(np.float64) + moves @ to_mesh.T
+        block.data.foreach_set("co", co.astype(np.float32).ravel())
+        block.slider_min, block.slider_max, block.value = 0.0, 1.0, 0.0
+        swing = tuple(float(v) for v in key.get("swing", (0.0, 0.0)))
+        fc = block.driver_add("value")
+        driver = fc.driver
+        driver.type = 'SCRIPTED'
+        for variable, channel in zip("wxyz", ("ROT_W", "ROT_X", "ROT_Y", "ROT_Z")):
+            var = driver.variables.new()
+            var.name, var.type = variable, 'TRANSFORMS'
+            target = var.targets[0]
+            target.id, target.bone_target, target.transform_type = arm, key["bone"], channel
+            target.rotation_mode, target.transform_space = 'QUATERNION', 'LOCAL_SPACE'
+        driver.expression = weight_expression(key["k1"], key["k2"], swing)
+        entries.append({"name": name, "bone": key["bone"], "k1": float(key["k1"]), "k2": float(key["k2"]),
+                        "swing": list(swing)})
+    skin[KEYS_PROPERTY] = entries
+    if added_basis:
+        skin[ADDED_BASIS] = True
+    return len(entries)
+
+
+def remove(skin):
+    """Unbind: remove the shape keys (and their drivers) Bind added, and the Basis when Bind added it and no other key
+    is left."""
+    entries = stored(skin)
+    key = skin.data.shape_keys
+    if key is not None:
+        for e in entries:
+            block = key.key_blocks.get(e["name"])
+            if block is not None:
+                block.driver_remove("value")
+                skin.shape_key_remove(block)
+        key = skin.data.shape_keys
+        if skin.get(ADDED_BASIS) and key is not None and len(key.key_blocks) == 1:
+            skin.shape_key_remove(key.key_blocks[0])
+    for prop in (KEYS_PROPERTY, ADDED_BASIS):
+        if prop in skin:
+            del skin[prop]
+
+
+def set_muted(skin, muted):
+    """Volume Blend switched off (muted) or on again on a bound rig: the keys stay, muted keys add nothing."""
+    key = skin.data.shape_keys
+    if key is None:
+        return
+    for e in stored(skin):
+        block = key.key_blocks.get(e["name"])
+        if block is not None:
+            block.mute = bool(muted)
+
+
+def offsets_by_key(skin, arm):
+    """{name: #V by 3 armature-space offsets at weight 1} of the keys Bind added (what the core adds per weight)."""
+    key = skin.data.shape_keys
+    if key is None:
+        return {}
+    to_arm = blender_io.mesh_to_armature_matrix(skin, arm)
+    out = {}
+    n = len(skin.data.vertices)
+    for e in stored(skin):
+        block = key.key_blocks.get(e["name"])
+        if block is None:
+            continue
+        co, basis = np.empty(n * 3, dtype=np.float32), np.empty(n * 3, dtype=np.float32)
+        block.data.foreach_get("co", co)
+        block.relative_key.data.foreach_get("co", basis)
+        out[e["name"]] = (co.reshape(-1, 3).astype(np.float64) - basis.reshape(-1, 3)) @ to_arm[:3, :3].T
+    return out
+
