@@ -13,11 +13,11 @@ skinner); Bake PC2 and the correctives read them through the evaluated shape key
 The mesh keeps what it needs to undo and to check: ID property KEYS_PROPERTY, a list of {name, bone, k1, k2, swing}
 per key Bind added, and ADDED_BASIS when Bind added the Basis key itself.
 
-Layer: service (imports blender_io only)."""
+Layer: service (imports blender_io, core_loader)."""
 
 import numpy as np
 
-from . import blender_io
+from . import blender_io, core_loader
 
 KEYS_PROPERTY = "myoskin_volume_keys"
 ADDED_BASIS = "myoskin_volume_keys_added_basis"
@@ -147,3 +147,35 @@ def offsets_by_key(skin, arm):
         out[e["name"]] = (co.reshape(-1, 3).astype(np.float64) - basis.reshape(-1, 3)) @ to_arm[:3, :3].T
     return out
 
+
+
+
+def pose_weights(skin, character, pose):
+    """{shape key name: weight} of the mesh's unmuted volume keys under `pose` (#B by 4 by 4 posed matrices of
+    `character`'s bones, PoseBone.matrix), computed by the core (volume_key_weights: the drivers' formula)."""
+    entries = stored(skin)
+    key = skin.data.shape_keys
+    if not entries or key is None:
+        return {}
+    names = list(character.bone_names)
+    live = [e for e in entries if e["bone"] in names and key.key_blocks.get(e["name"]) is not None
+            and not key.key_blocks[e["name"]].mute]
+    if not live:
+        return {}
+    core = core_loader.core()
+    rotations = np.asarray(core.bone_local_rotations(character, np.asarray(pose)))
+    weights = core.volume_key_weights([dict(e, bone_index=names.index(e["bone"])) for e in live], rotations)
+    return {e["name"]: float(w) for e, w in zip(live, weights)}
+
+
+def pose_offsets(skin, arm, character, pose):
+    """#V by 3 armature-space offsets the volume keys add to the mesh's rest under `pose` (pose_weights): what
+    Blender's shape keys hand its Armature modifiers, so the core's skinner on rest + these equals Blender's skin.
+    Muted keys (Volume Blend off) add nothing."""
+    out = np.zeros((len(skin.data.vertices), 3))
+    weights = pose_weights(skin, character, pose)
+    if weights:
+        offsets = offsets_by_key(skin, arm)
+        for name, weight in weights.items():
+            out += weight * offsets[name]
+    return out

@@ -69,7 +69,9 @@ def core_skin(arm, skin, state):
     names = rig.bone_names + rig.joint_names
     joints, weights = rig_io.read_combined_weights(skin, names)
     io = module("blender_io")
-    rest = io.mesh_vertices(skin.data)
+    to_mesh = np.linalg.inv(io.mesh_to_armature_matrix(skin, arm))[:3, :3]
+    # the volume keys (shape keys before the Armature modifiers) at the core's weights for this pose
+    rest = io.mesh_vertices(skin.data) + module("volume_keys").pose_offsets(skin, arm, rig.character, pose) @ to_mesh.T
     joint_matrices = rig.rig.evaluate(pose)["joint_matrices"]
     transforms = np.concatenate([pose @ np.linalg.inv(np.asarray(rig.character.bone_rest)),
                                  joint_matrices @ np.linalg.inv(np.asarray(rig.rig.bind_matrices))])

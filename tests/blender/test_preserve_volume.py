@@ -69,25 +69,10 @@ def core_skin(arm, skin, preserve_volume, share=None):
                        dq_scale=module("binding").dq_scale()), bulge
 
 
-def volume_key_weights(skin, rig, pose):
-    """{shape key name: the core's weight (volume_key_weights) for `pose`} of the volume keys Bind stored on the mesh."""
-    entries = module("volume_keys").stored(skin)
-    if not entries:
-        return {}
-    names = list(rig.character.bone_names)
-    keys = [dict(e, bone_index=names.index(e["bone"])) for e in entries]
-    weights = core().volume_key_weights(keys, np.asarray(core().bone_local_rotations(rig.character, pose)))
-    return {e["name"]: w for e, w in zip(entries, weights)}
-
-
 def volume_key_offsets(arm, skin, rig, pose):
     """#V by 3 (mesh space): the volume keys' offsets at the core's weights for `pose`."""
     to_mesh = np.linalg.inv(module("blender_io").mesh_to_armature_matrix(skin, arm))[:3, :3]
-    offsets = module("volume_keys").offsets_by_key(skin, arm)
-    out = np.zeros((len(skin.data.vertices), 3))
-    for name, weight in volume_key_weights(skin, rig, pose).items():
-        out += weight * offsets[name] @ to_mesh.T
-    return out
+    return module("volume_keys").pose_offsets(skin, arm, rig.character, pose) @ to_mesh.T
 
 
 def set_pose(arm, rotations, scales=None):
@@ -243,7 +228,8 @@ def test_volume_blend_bind_writes_the_group_and_a_second_modifier_and_blender_eq
             live = module("live")
             rig = live.live_rig(arm)
             depsgraph = bpy.context.evaluated_depsgraph_get()
-            core_weights = volume_key_weights(skin, rig, live.evaluated_pose(arm, rig, depsgraph))
+            core_weights = module("volume_keys").pose_weights(skin, rig.character,
+                                                                   live.evaluated_pose(arm, rig, depsgraph))
             blocks = skin.data.shape_keys.evaluated_get(depsgraph).key_blocks
             driver_err = max(abs(blocks[n].value - w) for n, w in core_weights.items())
             acting = max(core_weights.values())

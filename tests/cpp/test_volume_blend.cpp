@@ -411,6 +411,7 @@ TEST(VolumeKeys, WeightsFollowTheSwingOnlyAndTheFourQuartersMakeTheAnyWayKey) {
     EXPECT_NEAR(volumeKeyWeight(any, q), expected, 1e-12);
     EXPECT_NEAR(volumeKeyWeight(any, Eigen::Quaterniond(-2.0 * q.coeffs())), expected, 1e-12);  // sign, norm
     double sum = 0.0;
+    ASSERT_EQ(quarters.size(), 4u);
     for (const VolumeKey& k : quarters) {
       const double lean = std::hypot(y.x(), y.z());
       const double cosine = lean > 0.0 ? (k.swing.x() * y.x() + k.swing.y() * y.z()) / lean : 0.0;
@@ -423,7 +424,8 @@ TEST(VolumeKeys, WeightsFollowTheSwingOnlyAndTheFourQuartersMakeTheAnyWayKey) {
   }
   ASSERT_EQ(tried, 200);
   EXPECT_EQ(volumeKeyWeight(any, Eigen::Quaterniond::Identity()), 0.0);
-  for (const VolumeKey& k : quarters) EXPECT_EQ(volumeKeyWeight(k, Eigen::Quaterniond::Identity()), 0.0);
+  for (int quarter = 0; quarter < 4; ++quarter)
+    EXPECT_EQ(volumeKeyWeight(quarters[static_cast<size_t>(quarter)], Eigen::Quaterniond::Identity()), 0.0);
 }
 
 TEST(VolumeKeys, SoldierJointsKeepTheirVolumeWithoutFoldingAndRestIsExact) {

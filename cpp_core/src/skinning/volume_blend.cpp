@@ -242,7 +242,10 @@ JointScan scanJoints(const Skeleton& skeleton, const SkinWeights& w, const Mesh&
         if (skeleton.bones[x].parent == b && twist[x] && limbBelow(x)) return true;
       return false;
     };
-    const bool parentLimb = realParent(c) >= 0 && roles[realParent(c)] == BoneRole::Limb;
+    // Above: the bones up to the real joint above (across twist splits), any of them a limb's.
+    bool parentLimb = false;
+    for (int a = skeleton.bones[c].parent; a >= 0 && !parentLimb; a = twist[a] ? skeleton.bones[a].parent : -1)
+      parentLimb = roles[a] == BoneRole::Limb;
     joint.limb = limbBelow(c) || parentLimb;
     joint.limbRoot = limbBelow(c) && !parentLimb;
     joint.keyOnly = twist[c] != 0;
