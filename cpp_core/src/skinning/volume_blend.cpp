@@ -22,6 +22,7 @@ namespace {
 constexpr int kShareSteps = 100;  // shares tried: 0, 1/100, ..., 1
 constexpr double kLeanFloor = 1e-12;  // volumeKeyWeight: a lean this small is the rest pose (Blender's driver too)
 constexpr double kRounding = 1e-9;
+constexpr double kVisibleOffset = 0.01;  // volume keys: the smallest offset kept, in limb radii
 constexpr int kFoldShrinks = 12;  // volume keys: times a key shrinks by a fifth before it is dropped for folding the skin  // band changes this small are rounding (a band no bend changes keeps share 1)
 
 // ============================================================================
@@ -508,11 +509,15 @@ bool fitVolumeKey(const Skeleton& skeleton, const SkinWeights& w, const Mesh& sk
   Points linear;
   for (double degrees = 15.0; degrees <= largest + 1e-9 && peak > 0.0; degrees += 15.0) {
     bent(degrees, base, moved, &linear);
-    const int folds = std::max(selfIntersections(base, band.triangles), selfIntersections(linear, band.triangles));
+    const int folds = selfIntersections(base, band.triangles);
     for (int it = 0; peak > 0.0 && selfIntersections(Points(base + weightAt(degrees) * peak * moved), band.triangles) > folds; ++it)
       peak = it < kFoldShrinks ? 0.8 * peak : 0.0;
   }
-  if (!(peak > 1e-6)) return false;
+  // A key that moves the skin less than kVisibleOffset limb radii changes nothing one could see (and only flips
+  // contacts the bent skin already has).
+  double reachOut = 0.0;
+  for (int i = 0; i < n; ++i) reachOut = std::max(reachOut, profile.row(i).norm());
+  if (!(peak * reachOut > kVisibleOffset * limbRadius)) return false;
   key.bone = joint.bone;
   key.axis = axis;
   if (directional) {  // the side the bone's tail swings to, in the bone's rest frame (x, z)
