@@ -12,7 +12,8 @@ the measures). Per character and joint, for
 it prints the band's volume change (skin within 1.5 limb radii of the joint, cone volume from the joint), the
 largest outward move of the upper segment's skin over the LBS skin (along the LBS normals) and the band's
 triangle pairs that cross each other (over rest), once from Blender's evaluated mesh and once from the core's
-skinner on the same rest skin, weights and transforms (core.skin, in Blender's mode), with their largest vertex
+skinner on the same rest skin (plus the volume keys at the core's weights), weights and transforms (core.skin, in
+Blender's mode), with their largest vertex
 difference relative to the character's size (the Blender tests hold it under 1e-5). The core Character is read
 from the Blender scene through the add-on's reader (blender_io.combined_character: every mesh of the armature in
 its space, welded), so both share the armature space; each joint is bent by skin_quality.bent_pose in that space
@@ -191,7 +192,7 @@ def figures(core, rest, tris, skins, joint_rest, joint_posed, radius, on_upper):
 def measure_character(core, label, path, joints):
     """Rows (joint label, method, Blender figures, core figures, max |Blender - core| / size) of one character,
     and a summary line."""
-    io, binding, live = (addon_module(n) for n in ("blender_io", "binding", "live"))
+    io, binding, live, volume_keys = (addon_module(n) for n in ("blender_io", "binding", "live", "volume_keys"))
     start = time.perf_counter()
     arm = load_scene(core, path)
     meshes, _skipped = io.character_meshes(arm)
@@ -277,8 +278,10 @@ def measure_character(core, label, path, joints):
         joint_matrices = np.asarray(rig.rig.evaluate(evaluated_pose)["joint_matrices"])
         transforms = np.concatenate([core.skeleton_transforms(character, evaluated_pose),
                                      joint_matrices @ bind_inverse])
-        if share is not None:
-            ours["Myoskin"] = np.asarray(core.skin(rest, hj, hw, transforms, dqs_share=share,
+        if share is not None:  # with the volume keys at the core's weights (shape keys before the modifiers)
+            keyed = rest + np.concatenate([volume_keys.pose_offsets(m, arm, rig.character, evaluated_pose)
+                                           for m in combined.meshes])[first]
+            ours["Myoskin"] = np.asarray(core.skin(keyed, hj, hw, transforms, dqs_share=share,
                                                    rest_matrices=combined_rest, dq_scale=dq_scale), float)
         else:
             ours["Myoskin"] = np.asarray(core.skin(rest, hj, hw, transforms, preserve_volume=pv,
