@@ -13,8 +13,8 @@ it prints the band's volume change (skin within 1.5 limb radii of the joint, con
 largest outward move of the upper segment's skin over the LBS skin (along the LBS normals) and the band's
 triangle pairs that cross each other (over rest), once from Blender's evaluated mesh and once from the core's
 skinner on the same rest skin (plus the volume keys at the core's weights), weights and transforms (core.skin, in
-Blender's mode), with their largest vertex
-difference relative to the character's size (the Blender tests hold it under 1e-5). The core Character is read
+Blender's mode), with their largest vertex difference relative to the character's size (the Blender tests hold it
+under 1e-5). The core Character is read
 from the Blender scene through the add-on's reader (blender_io.combined_character: every mesh of the armature in
 its space, welded), so both share the armature space; each joint is bent by skin_quality.bent_pose in that space
 (Blender's characters face -Y) and the armature is posed so that every bone's PoseBone.matrix equals it.
