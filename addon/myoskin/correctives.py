@@ -21,7 +21,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix
 
-from . import binding, blender_io, core_loader, core_skin, rig_io
+from . import binding, blender_io, core_loader, core_skin, rig_io, volume_keys
 
 STORE_KEY = "myoskin_correctives"
 KERNEL_PREFIX = "myoskin_rbf_"
@@ -269,39 +269,43 @@ def build_drivers(entries, arm):
 
 @contextlib.contextmanager
 def weights_baked_for_export(context, skins, arm):
-    """While the body runs (a glTF export): every corrective key of `skins` keyed on each frame of the scene's
-    range with the value its drivers give there, its drivers removed, so an exporter that does not follow a
-    driver chain (Blender 4.x's glTF exporter) writes the morph weights animation. Afterwards the Key's action
-    and the drivers are as before (the drivers rebuilt from the stored correctives)."""
-    targets = [(skin, stored(skin)[1]) for skin in skins]
-    targets = [(skin, entries) for skin, entries in targets if entries and skin.data.shape_keys is not None]
+    """While the body runs (a glTF export): every corrective key and volume key of `skins` keyed on each frame of the
+    scene's range with the value its drivers give there, its drivers removed, so an exporter that does not follow a
+    driver (Blender 4.x's glTF exporter) writes the morph weights animation. Afterwards the Key's action and the
+    drivers are as before (the drivers rebuilt from the stored correctives and volume keys)."""
+    targets = []
+    for skin in skins:
+        entries = stored(skin)[1]
+        names = [e["name"] for e in entries] + [e["name"] for e in volume_keys.stored(skin)]
+        if names and skin.data.shape_keys is not None:
+            targets.append((skin, entries, names))
     if not targets:
         yield
         return
     scene = context.scene
     frames = list(range(scene.frame_start, scene.frame_end + 1))
-    values = {skin.name: [] for skin, _entries in targets}
+    values = {skin.name: [] for skin, _entries, _names in targets}
     current = scene.frame_current
     try:
         for frame in frames:
             scene.frame_set(frame)
             depsgraph = context.evaluated_depsgraph_get()
-            for skin, entries in targets:
+            for skin, _entries, names in targets:
                 key = skin.data.shape_keys.evaluated_get(depsgraph)
-                values[skin.name].append([float(key.key_blocks[e["name"]].value) for e in entries])
+                values[skin.name].append([float(key.key_blocks[n].value) for n in names])
     finally:
         scene.frame_set(current)
     saved = []
     try:
-        for skin, entries in targets:
+        for skin, entries, names in targets:
             key = skin.data.shape_keys
             ad = key.animation_data or key.animation_data_create()
             saved.append((skin, entries, ad.action))
-            _remove_drivers(key, [e["name"] for e in entries])
+            _remove_drivers(key, names)
             ad.action = bpy.data.actions.new(f"{key.name}Correctives")
             for k, frame in enumerate(frames):
-                for j, e in enumerate(entries):
-                    kb = key.key_blocks[e["name"]]
+                for j, n in enumerate(names):
+                    kb = key.key_blocks[n]
                     kb.value = values[skin.name][k][j]
                     kb.keyframe_insert("value", frame=frame)
         yield
@@ -312,7 +316,9 @@ def weights_baked_for_export(context, skins, arm):
             ad.action = action
             if baked is not None and baked != action:
                 bpy.data.actions.remove(baked)
-            write_drivers(skin, arm, build_drivers(entries, arm), entries)
+            if entries:
+                write_drivers(skin, arm, build_drivers(entries, arm), entries)
+            volume_keys.rebuild_drivers(skin, arm)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -81,22 +81,37 @@ def write(skin, arm, keys, offsets):
         block.data.foreach_set("co", co.astype(np.float32).ravel())
         block.slider_min, block.slider_max, block.value = 0.0, 1.0, 0.0
         swing = tuple(float(v) for v in key.get("swing", (0.0, 0.0)))
-        fc = block.driver_add("value")
-        driver = fc.driver
-        driver.type = 'SCRIPTED'
-        for variable, channel in zip("wxyz", ("ROT_W", "ROT_X", "ROT_Y", "ROT_Z")):
-            var = driver.variables.new()
-            var.name, var.type = variable, 'TRANSFORMS'
-            target = var.targets[0]
-            target.id, target.bone_target, target.transform_type = arm, key["bone"], channel
-            target.rotation_mode, target.transform_space = 'QUATERNION', 'LOCAL_SPACE'
-        driver.expression = weight_expression(key["k1"], key["k2"], swing)
-        entries.append({"name": name, "bone": key["bone"], "k1": float(key["k1"]), "k2": float(key["k2"]),
-                        "swing": list(swing)})
+        entry = {"name": name, "bone": key["bone"], "k1": float(key["k1"]), "k2": float(key["k2"]),
+                 "swing": list(swing)}
+        drive(block, arm, entry)
+        entries.append(entry)
     skin[KEYS_PROPERTY] = entries
     if added_basis:
         skin[ADDED_BASIS] = True
     return len(entries)
+
+
+def drive(block, arm, entry):
+    """(Re)write the driver of one volume key's shape key `block` from its stored entry."""
+    block.driver_remove("value")
+    driver = block.driver_add("value").driver
+    driver.type = 'SCRIPTED'
+    for variable, channel in zip("wxyz", ("ROT_W", "ROT_X", "ROT_Y", "ROT_Z")):
+        var = driver.variables.new()
+        var.name, var.type = variable, 'TRANSFORMS'
+        target = var.targets[0]
+        target.id, target.bone_target, target.transform_type = arm, entry["bone"], channel
+        target.rotation_mode, target.transform_space = 'QUATERNION', 'LOCAL_SPACE'
+    driver.expression = weight_expression(entry["k1"], entry["k2"], entry["swing"])
+
+
+def rebuild_drivers(skin, arm):
+    """Every stored volume key's driver written again (after an export baked their values)."""
+    key = skin.data.shape_keys
+    for e in stored(skin):
+        block = key.key_blocks.get(e["name"]) if key is not None else None
+        if block is not None:
+            drive(block, arm, e)
 
 
 def remove(skin):
