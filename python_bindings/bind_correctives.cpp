@@ -221,10 +221,11 @@ void bindCorrectives(py::module_& m) {
       py::arg("sample_degrees") = VolumeKeyOptions{}.sampleDegrees,
       py::arg("max_offset") = VolumeKeyOptions{}.maxOffset, py::arg("band_radius") = VolumeBlendOptions{}.bandRadius,
       py::arg("min_blend") = VolumeBlendOptions{}.minBlend, py::arg("up") = py::none(),
-      "Volume keys of the volume blend (share: compute_dqs_share's #V shares): one dict per real joint whose band "
-      "still loses volume as it bends (bone, bone_index, vertices, offsets #n by 3 in rest space at weight 1, k1, k2: "
-      "weight = clamp(s (k1 + k2 s), 0, 1) with s = x^2 + z^2 of the bone's local rotation quaternion, times the swing factor of a directional key: swing (x, z), zero for any swing; axis, sample_degrees "
-      "with the band's change_without and change_with the key).");
+      "Volume keys of the volume blend (share: compute_dqs_share's #V shares): one dict per key of a limb joint whose "
+      "band still loses volume as it bends (bone, bone_index, vertices, offsets #n by 3 in rest space at weight 1, "
+      "k1, k2, swing (x, z) or (0, 0), axis; weight = clamp(s (k1 + k2 s) g, 0, 1), s = x^2 + z^2 of the bone's local "
+      "rotation quaternion, g the directional factor of volume_blend.h; sample_degrees with the band's change_without "
+      "and change_with the key).");
   m.def(
       "volume_key_weights",
       [](const py::list& keys, const DoubleArray& localRotations) {

@@ -260,14 +260,26 @@ def add_volume_blend(skin, arm, share):
 
 def add_volume_keys(core, character, combined, skins, arm, share):
     """The volume keys of the combined character (compute_volume_keys on Bind's shares) as driven shape keys on each
-    mesh they reach (volume_keys.write). Returns the number of shape keys added."""
+    mesh they reach (volume_keys.add_key; one key's #V by 3 offsets in memory at a time). Returns the number of shape
+    keys added."""
     keys = core.compute_volume_keys(character, share)
-    per_key = []
+    entries = {skin.name: [] for skin in skins}
+    counts = {}
     for key in keys:
+        counts[key["bone"]] = counts.get(key["bone"], 0) + 1
+    seen = {}
+    for key in keys:
+        seen[key["bone"]] = seen.get(key["bone"], 0) + 1
+        name = volume_keys.key_name(key["bone"], counts[key["bone"]] > 1, seen[key["bone"]])
         full = np.zeros((character.num_vertices, 3))
         full[np.asarray(key["vertices"], dtype=np.int64)] = np.asarray(key["offsets"])
-        per_key.append(combined.split(full))
-    return sum(volume_keys.write(skin, arm, keys, [pieces[m] for pieces in per_key]) for m, skin in enumerate(skins))
+        for skin, moves in zip(skins, combined.split(full)):
+            entry = volume_keys.add_key(skin, arm, key, name, moves)
+            if entry is not None:
+                entries[skin.name].append(entry)
+    for skin in skins:
+        volume_keys.set_stored(skin, entries[skin.name])
+    return sum(len(e) for e in entries.values())
 
 
 def _switch_volume_blend_off(skin, arm):

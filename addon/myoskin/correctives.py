@@ -276,31 +276,34 @@ def weights_baked_for_export(context, skins, arm):
     targets = []
     for skin in skins:
         entries = stored(skin)[1]
-        names = [e["name"] for e in entries] + [e["name"] for e in volume_keys.stored(skin)]
-        if names and skin.data.shape_keys is not None:
-            targets.append((skin, entries, names))
+        key = skin.data.shape_keys
+        volume = [e for e in volume_keys.stored(skin) if key is not None and e["name"] in key.key_blocks
+                  and not key.key_blocks[e["name"]].mute]  # muted (Volume Blend off): Blender adds nothing
+        names = [e["name"] for e in entries] + [e["name"] for e in volume]
+        if names and key is not None:
+            targets.append((skin, entries, volume, names))
     if not targets:
         yield
         return
     scene = context.scene
     frames = list(range(scene.frame_start, scene.frame_end + 1))
-    values = {skin.name: [] for skin, _entries, _names in targets}
+    values = {skin.name: [] for skin, _entries, _volume, _names in targets}
     current = scene.frame_current
     try:
         for frame in frames:
             scene.frame_set(frame)
             depsgraph = context.evaluated_depsgraph_get()
-            for skin, _entries, names in targets:
+            for skin, _entries, _volume, names in targets:
                 key = skin.data.shape_keys.evaluated_get(depsgraph)
                 values[skin.name].append([float(key.key_blocks[n].value) for n in names])
     finally:
         scene.frame_set(current)
     saved = []
     try:
-        for skin, entries, names in targets:
+        for skin, entries, volume, names in targets:
             key = skin.data.shape_keys
             ad = key.animation_data or key.animation_data_create()
-            saved.append((skin, entries, ad.action))
+            saved.append((skin, entries, volume, ad.action))
             _remove_drivers(key, names)
             ad.action = bpy.data.actions.new(f"{key.name}Correctives")
             for k, frame in enumerate(frames):
@@ -310,7 +313,7 @@ def weights_baked_for_export(context, skins, arm):
                     kb.keyframe_insert("value", frame=frame)
         yield
     finally:
-        for skin, entries, action in saved:
+        for skin, entries, volume, action in saved:
             ad = skin.data.shape_keys.animation_data
             baked = ad.action
             ad.action = action
@@ -318,7 +321,7 @@ def weights_baked_for_export(context, skins, arm):
                 bpy.data.actions.remove(baked)
             if entries:
                 write_drivers(skin, arm, build_drivers(entries, arm), entries)
-            volume_keys.rebuild_drivers(skin, arm)
+            volume_keys.rebuild_drivers(skin, arm, volume)
 
 
 # ------------------------------------------------------------------------------------------------

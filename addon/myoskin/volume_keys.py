@@ -11,7 +11,9 @@ before the Armature modifiers, so Blender skins the keyed rest exactly as the co
 skinner); Bake PC2 and the correctives read them through the evaluated shape key mix.
 
 The mesh keeps what it needs to undo and to check: ID property KEYS_PROPERTY, a list of {name, bone, k1, k2, swing}
-per key Bind added, and ADDED_BASIS when Bind added the Basis key itself.
+per key Bind added (binding.add_volume_keys -> add_key, set_stored), and ADDED_BASIS when Bind added the Basis key
+itself. The keys are ordinary shape keys: while they are on the mesh Blender will not apply its modifiers (Unbind
+removes them), and each adds one copy of the mesh's coordinates to the .blend.
 
 Layer: service (imports blender_io, core_loader)."""
 
@@ -41,54 +43,66 @@ def weight_expression(k1, k2, swing):
     return expression.replace("+-", "-")
 
 
+def _driven_bone(block):
+    """The bone a volume key's driver reads now (Blender renames it with the bone), or None without a driver."""
+    ad = block.id_data.animation_data
+    if ad is None:
+        return None
+    path = block.path_from_id("value")
+    for fc in ad.drivers:
+        if fc.data_path == path and fc.driver.variables:
+            return fc.driver.variables[0].targets[0].bone_target or None
+    return None
+
+
 def stored(skin):
-    """The volume keys Bind added to `skin` (a list of dicts), [] without any."""
-    return [dict(e) for e in skin.get(KEYS_PROPERTY, [])]
+    """The volume keys Bind added to `skin` (a list of dicts {name, bone, k1, k2, swing}; the bone as the key's driver
+    reads it now, so a bone renamed after Bind is followed), [] without any."""
+    entries = [dict(e) for e in skin.get(KEYS_PROPERTY, [])]
+    key = skin.data.shape_keys
+    for e in entries:
+        e["swing"] = [float(x) for x in e["swing"]]
+        block = key.key_blocks.get(e["name"]) if key is not None else None
+        bone = _driven_bone(block) if block is not None else None
+        if bone:
+            e["bone"] = bone
+    return entries
 
 
-def _key_names(keys):
-    """One shape key name per core key: myoskin_volume.<bone> (directional keys: .1, .2, ... per bone)."""
-    names, seen = [], {}
-    for key in keys:
-        bone = key["bone"]
-        seen[bone] = seen.get(bone, 0) + 1
-        names.append(KEY_PREFIX + bone + (f".{seen[bone]}" if any(k["bone"] == bone for k in keys if k is not key)
-                                          else ""))
-    return names
+def key_name(bone, directional, index):
+    """The shape key name of a volume key: myoskin_volume.<bone> (a limb root's quarters: .1 to .4)."""
+    return KEY_PREFIX + bone + (f".{index}" if directional else "")
 
 
-def write(skin, arm, keys, offsets):
-    """Add a driven shape key per core key that moves this mesh: `keys` (compute_volume_keys' dicts) and `offsets`
-    (one #V by 3 array per key: this mesh's vertices, armature space; all zero where the key does not reach it).
-    Returns the number of shape keys added."""
-    entries = []
-    to_arm = blender_io.mesh_to_armature_matrix(skin, arm)
-    to_mesh = np.linalg.inv(to_arm[:3, :3])
-    added_basis = False
-    for key, name, moves in zip(keys, _key_names(keys), offsets):
-        moves = np.asarray(moves, dtype=np.float64)
-        if not np.any(moves):
-            continue
-        if arm.data.bones.get(key["bone"]) is None:
-            raise ValueError(f"Volume key of bone '{key['bone']}': armature '{arm.name}' has no such bone")
-        if skin.data.shape_keys is None:
-            skin.shape_key_add(name="Basis", from_mix=False)
-            added_basis = True
-        block = skin.shape_key_add(name=name, from_mix=False)
-        basis = np.empty(len(skin.data.vertices) * 3, dtype=np.float32)
-        block.relative_key.data.foreach_get("co", basis)
-        co = basis.reshape(-1, 3).astype(np.float64) + moves @ to_mesh.T
-        block.data.foreach_set("co", co.astype(np.float32).ravel())
-        block.slider_min, block.slider_max, block.value = 0.0, 1.0, 0.0
-        swing = tuple(float(v) for v in key.get("swing", (0.0, 0.0)))
-        entry = {"name": name, "bone": key["bone"], "k1": float(key["k1"]), "k2": float(key["k2"]),
-                 "swing": list(swing)}
-        drive(block, arm, entry)
-        entries.append(entry)
-    skin[KEYS_PROPERTY] = entries
-    if added_basis:
+def add_key(skin, arm, key, name, moves):
+    """Add one driven shape key for a core volume key (compute_volume_keys' dict) to `skin`: `moves` is this mesh's
+    #V by 3 armature-space offsets at weight 1. Returns its entry for set_stored, or None when the key does not reach
+    this mesh. Adds the Basis key first when the mesh has none (remembered for Unbind)."""
+    moves = np.asarray(moves, dtype=np.float64)
+    if not np.any(moves):
+        return None
+    if arm.data.bones.get(key["bone"]) is None:
+        raise ValueError(f"Volume key of bone '{key['bone']}': armature '{arm.name}' has no such bone")
+    if skin.data.shape_keys is None:
+        skin.shape_key_add(name="Basis", from_mix=False)
         skin[ADDED_BASIS] = True
-    return len(entries)
+    to_mesh = np.linalg.inv(blender_io.mesh_to_armature_matrix(skin, arm)[:3, :3])
+    block = skin.shape_key_add(name=name, from_mix=False)
+    basis = np.empty(len(skin.data.vertices) * 3, dtype=np.float32)
+    block.relative_key.data.foreach_get("co", basis)
+    co = basis.reshape(-1, 3).astype(np.float64) + moves @ to_mesh.T
+    block.data.foreach_set("co", co.astype(np.float32).ravel())
+    block.slider_min, block.slider_max, block.value = 0.0, 1.0, 0.0
+    # Blender shortens long names and renames clashes (".001"): the entry keeps the name the key really has.
+    entry = {"name": block.name, "bone": key["bone"], "k1": float(key["k1"]), "k2": float(key["k2"]),
+             "swing": [float(v) for v in key.get("swing", (0.0, 0.0))]}
+    drive(block, arm, entry)
+    return entry
+
+
+def set_stored(skin, entries):
+    """Remember the volume keys Bind added to `skin` (add_key's entries)."""
+    skin[KEYS_PROPERTY] = entries
 
 
 def drive(block, arm, entry):
@@ -105,10 +119,10 @@ def drive(block, arm, entry):
     driver.expression = weight_expression(entry["k1"], entry["k2"], entry["swing"])
 
 
-def rebuild_drivers(skin, arm):
-    """Every stored volume key's driver written again (after an export baked their values)."""
+def rebuild_drivers(skin, arm, entries):
+    """The drivers of the volume keys `entries` (stored(skin) taken before they were removed) written again."""
     key = skin.data.shape_keys
-    for e in stored(skin):
+    for e in entries:
         block = key.key_blocks.get(e["name"]) if key is not None else None
         if block is not None:
             drive(block, arm, e)

@@ -207,6 +207,13 @@ def test_volume_blend_bind_writes_the_group_and_a_second_modifier_and_blender_eq
     assert share.min() >= 0.0 and share.max() <= 1.0 and share.max() > 0.0
     keys = module("volume_keys").stored(skin)
     assert keys and all(k["name"] in skin.data.shape_keys.key_blocks for k in keys), keys
+    drivers = {fc.data_path: fc.driver for fc in skin.data.shape_keys.animation_data.drivers}
+    for k in keys:  # native drivers: no Python, valid
+        driver = drivers[f'key_blocks["{k["name"]}"].value']
+        assert driver.is_valid and driver.is_simple_expression, (k["name"], driver.expression)
+    directional = [k["name"] for k in keys if any(k["swing"])]
+    assert directional, "the upper arm (a limb's root) gets directional keys"
+    acted = set()
     size = size_of(skin)
     rest = module("blender_io").mesh_vertices(skin.data)
     rest_err = float(np.abs(evaluated(skin) - rest).max()) / size
@@ -238,11 +245,13 @@ def test_volume_blend_bind_writes_the_group_and_a_second_modifier_and_blender_eq
             assert driver_err < 1e-6, driver_err
             if name == "elbow 120":
                 assert acting > 0.1, "the elbow's volume key should act at 120 degrees"
+            acted |= {n for n, w in core_weights.items() if w > 0.1}
             print(f"  {label}, {name}: Blender volume blend vs core {err:.2e} of the size (vs linear "
                   f"{np.abs(blender - linear).max() / size:.2e}, vs DQS {np.abs(blender - dq).max() / size:.2e})")
             errors.append(err)
             if label == "random shares":  # a real mix: neither mode alone
                 assert np.abs(blender - linear).max() / size > 1e-4 and np.abs(blender - dq).max() / size > 1e-4
+    assert acted & set(directional), f"no directional key acted in these poses ({sorted(acted)})"
     print(f"  rest pose error {rest_err:.2e}; max Blender vs core, volume blend {max(errors):.2e} "
           f"(Blender {bpy.app.version_string})")
     assert max(errors) < TOLERANCE, errors

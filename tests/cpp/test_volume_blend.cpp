@@ -399,7 +399,6 @@ TEST(VolumeKeys, WeightsFollowTheSwingOnlyAndTheFourQuartersMakeTheAnyWayKey) {
   quarters[3].swing = {0.0, -1.0};
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
-  int tried = 0;
   for (int i = 0; i < 200; ++i) {
     const double swing = 3.0 * std::abs(u(rng)), twist = 3.0 * u(rng), heading = 3.2 * u(rng);
     const Vec3 side(std::cos(heading), 0.0, std::sin(heading));  // the way the tail leans, in the bone's frame
@@ -420,9 +419,7 @@ TEST(VolumeKeys, WeightsFollowTheSwingOnlyAndTheFourQuartersMakeTheAnyWayKey) {
     }
     EXPECT_NEAR(sum, expected, 1e-9);
     EXPECT_EQ(volumeKeyWeight(any, Eigen::Quaterniond(Eigen::AngleAxisd(twist, Vec3::UnitY()))), 0.0);
-    ++tried;
   }
-  ASSERT_EQ(tried, 200);
   EXPECT_EQ(volumeKeyWeight(any, Eigen::Quaterniond::Identity()), 0.0);
   for (int quarter = 0; quarter < 4; ++quarter)
     EXPECT_EQ(volumeKeyWeight(quarters[static_cast<size_t>(quarter)], Eigen::Quaterniond::Identity()), 0.0);
@@ -432,7 +429,8 @@ TEST(VolumeKeys, SoldierJointsKeepTheirVolumeWithoutFoldingAndRestIsExact) {
   // A character nobody here made (Quaternius' soldier, four meshes, x100): the keys sit on its limbs only, move
   // nothing at rest, and at 120 degrees of elbow and knee flexion (not one of the keys' sample flexions) the band
   // keeps at least half of what linear skinning loses and no less than dual quaternions keep, with no more
-  // self-intersecting triangle pairs than linear skinning (the independent measure: bandVolume above).
+  // self-intersecting triangle pairs than linear skinning (bandVolume above: the measure the keys are fitted to, at
+  // another angle, through the skinner rather than the fit's own maps).
   const std::string path = test::sharedPath("characters/quaternius_woman_soldier/woman_soldier.glb");
   MYOSKIN_REQUIRE_SHARED(path);
   LoadOptions load;
@@ -448,6 +446,17 @@ TEST(VolumeKeys, SoldierJointsKeepTheirVolumeWithoutFoldingAndRestIsExact) {
     EXPECT_EQ(again[k].vertices, keys[k].vertices);
     EXPECT_EQ(again[k].offsets, keys[k].offsets);
   }
+  // A limb root's directional keys lean a quarter turn apart in the bone's rest frame (their g sum to 1).
+  int pairs = 0;
+  for (size_t a = 0; a < keys.size(); ++a)
+    for (size_t b = a + 1; b < keys.size(); ++b)
+      if (keys[a].bone == keys[b].bone && keys[a].swing.norm() > 0.0) {
+        const double dot = keys[a].swing.dot(keys[b].swing);
+        EXPECT_TRUE(std::abs(dot) < 1e-9 || std::abs(dot + 1.0) < 1e-9) << sk.bones[keys[a].bone].name << " " << dot;
+        EXPECT_NEAR(keys[b].swing.norm(), 1.0, 1e-12);
+        ++pairs;
+      }
+  EXPECT_GE(pairs, 2);  // both shoulders
   const std::vector<BoneRole> roles = characterBoneRoles(c);
   for (const VolumeKey& k : keys) {
     const int parent = sk.bones[k.bone].parent;

@@ -93,18 +93,19 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& ske
 // the rest normals, that give back the volume the blend still loses in the joint's band as it bends. Its weight
 // follows the swing of the joint's child bone, s = x^2 + z^2 = sin^2(swing / 2) of the bone's local rotation
 // quaternion (w, x, y, z) (twist about the bone moves nothing; Blender reads it with a driver on the bone's Local
-// Space quaternion):  weight = clamp(s (k1 + k2 s), 0, 1), in [0, 1] for every swing by construction. A directional
-// key (a limb's root: one per quarter of swing directions) is also multiplied by g = max(swing . lean, 0)^2 / |lean|^2,
-// lean = (xy - wz, yz + wx) the way the bone's Y axis leans in its rest frame's x and z; the four quarters' g sum to 1.
+// Space quaternion):  weight = clamp(s (k1 + k2 s) g, 0, 1), s (k1 + k2 s) in [0, 1] for every swing by construction;
+// g = 1, or for a directional key (a limb's root: one per quarter of swing directions) g = max(swing . lean, 0)^2 /
+// max(|lean|^2, 1e-12), lean = (xy - wz, yz + wx) the way the bone's Y axis leans in its rest frame's x and z (the
+// four quarters' g sum to 1).
 struct VolumeKey {
   int bone = -1;               // the joint's child bone (its local rotation drives the key)
   std::vector<int> vertices;   // the skin vertices it moves, ascending
   Points offsets;              // #vertices by 3, rest-space offsets at weight 1
   double k1 = 0.0, k2 = 0.0;   // weight = s (k1 + k2 s)
   Eigen::Vector2d swing = Eigen::Vector2d::Zero();  // unit (x, z) in the bone's rest frame; zero: any swing
-  // The fit: the swing axis the samples turn about (the reference flexion's; a limb root's quarters turn it about the
-  // bone by 90, 180, 270 degrees) and per sample flexion the band's volume change (relative to rest) without and
-  // with the key.
+  // The fit: the swing axis the samples turn about (the reference flexion's, made perpendicular to the bone's rest Y;
+  // a limb root's quarters turn it about that Y by 90, 180, 270 degrees) and per sample flexion the band's volume
+  // change (relative to rest) without and with the key.
   Vec3 axis = Vec3::Zero();
   std::vector<double> sampleDegrees, changeWithout, changeWith;
 };

@@ -21,9 +21,9 @@ namespace {
 
 constexpr int kShareSteps = 100;  // shares tried: 0, 1/100, ..., 1
 constexpr double kLeanFloor = 1e-12;  // volumeKeyWeight: a lean this small is the rest pose (Blender's driver too)
-constexpr double kRounding = 1e-9;
+constexpr double kRounding = 1e-9;  // band changes this small are rounding (a band no bend changes keeps share 1)
 constexpr double kVisibleOffset = 0.01;  // volume keys: the smallest offset kept, in limb radii
-constexpr int kFoldShrinks = 12;  // volume keys: times a key shrinks by a fifth before it is dropped for folding the skin  // band changes this small are rounding (a band no bend changes keeps share 1)
+constexpr int kFoldShrinks = 12;  // volume keys: times a key shrinks by a fifth before it is dropped for folding the skin
 
 // ============================================================================
 // Checks
@@ -151,7 +151,6 @@ BodyFrame bodyFrame(const Character& body, const Skeleton& joined, const std::ve
 struct RealJoint {
   int bone = -1;
   Vec3 axis = Vec3::Zero();          // its reference flexion's rotation axis (unit)
-  Vec3 direction = Vec3::Zero();     // its bone's direction (unit)
   bool limb = false;                 // a limb's joint: the segment below or above it is a limb's (Limb role)
   bool limbRoot = false;             // a limb's root (shoulder, hip): its bone is a limb's, the bone above is not
   bool keyOnly = false;              // a twist split where a limb begins by its role: volume keys, no share
@@ -234,7 +233,6 @@ JointScan scanJoints(const Skeleton& skeleton, const SkinWeights& w, const Mesh&
     RealJoint joint;
     joint.bone = c;
     joint.axis = axis;
-    joint.direction = d;
     // The segment below the joint is a limb's when its bone or a bone continuing it across twist splits is (MakeHuman's
     // shoulder01 -> upperarm01); above, when the real joint's bone is.
     std::function<bool(int)> limbBelow = [&](int b) {
@@ -407,29 +405,27 @@ namespace {
 // One joint's key for swings about `axis` (unit; `directional`: the key acts only on swings toward that side): the
 // offsets' profile and, per sample flexion, the amplitude that keeps the band's volume; then the weight's fit. False
 // when the band keeps its volume at every sample (no key).
-bool fitVolumeKey(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin, const Points& normals,
-                  const Eigen::VectorXd& share, const VolumeBlendOptions& o, const VolumeKeyOptions& ko,
-                  const RealJoint& joint, const Vec3& axis, bool directional, double limbRadius, VolumeKey& key) {
+bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<double>& bandBlend,
+                  const Points& normals, const Eigen::VectorXd& share, const VolumeBlendOptions& o,
+                  const VolumeKeyOptions& ko, const RealJoint& joint, const Vec3& axis, bool directional,
+                  double limbRadius, VolumeKey& key) {
   const Vec3 head = skeleton.bones[joint.bone].head;
   const double reach = o.bandRadius * limbRadius;
-  const Band band = jointBand(w, skin, head, reach);
-  if (band.triangles.rows() == 0) return false;
   const double v0 = coneVolume(band.rest, band.triangles, head);
   if (!(std::abs(v0) > 0.0)) return false;
   const int n = static_cast<int>(band.ids.size());
-  // Profile: the joint's blend b, tapered to 0 at the band's edge, times ((1 - n . side) / 2)^2 so the skin facing
-  // the way the limb bends (the crease, which folds) stays and the outer side swells, along the rest normal n, in
-  // limb radii.
-  std::vector<double> blendOf(static_cast<size_t>(skin.numVertices()), 0.0);
-  for (size_t i = 0; i < joint.blended.size(); ++i) blendOf[static_cast<size_t>(joint.blended[i])] = joint.blend[i];
-  const Vec3 side = axis.cross(joint.direction).normalized();
+  // Profile: the joint's blend b, tapered to 0 at the band's edge, times (1 - n . side) / 2 so the skin facing the
+  // way the limb bends (the crease, which folds) stays and the outer side swells, along the rest normal n, in limb
+  // radii.
+  const Vec3 boneY = skeleton.bones[joint.bone].rest.block<3, 1>(0, 1).normalized();
+  const Vec3 side = axis.cross(boneY).normalized();
   Points profile = Points::Zero(n, 3);
   for (int i = 0; i < n; ++i) {
     const double d = (band.rest.row(i).transpose() - head).norm() / reach;
     const double taper = std::pow(std::max(0.0, 1.0 - d * d), 2);
     const Vec3 normal = normals.row(band.ids[i]).transpose();
     const double outer = 0.5 * (1.0 - normal.dot(side));
-    profile.row(i) = limbRadius * blendOf[static_cast<size_t>(band.ids[i])] * taper * outer * normal.transpose();
+    profile.row(i) = limbRadius * bandBlend[static_cast<size_t>(i)] * taper * outer * normal.transpose();
   }
   // The band bent by `degrees` about `axis` under the blend: its positions, how one unit of the profile moves it
   // (each vertex's blended affine map is linear in its input), and (optional) its linear skin's positions.
@@ -456,8 +452,9 @@ bool fitVolumeKey(const Skeleton& skeleton, const SkinWeights& w, const Mesh& sk
     bent(degrees, base, moved);
     const double before = change(base);
     double a = 0.0;
-    if (before < 0.0) {
-      if (change(base + amax * moved) <= 0.0) {
+    const double most = change(base + amax * moved);
+    if (before < 0.0 && most > before) {  // the profile pushed out does give volume back
+      if (most <= 0.0) {
         a = amax;
       } else {
         double lo = 0.0, hi = amax;
@@ -564,14 +561,28 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
   const JointScan scan = scanJoints(skeleton, w, skin, options);
   const Points normals = vertexNormals(skin.vertices, skin.triangles);
   std::vector<VolumeKey> keys;
+  std::vector<int> local(static_cast<size_t>(skin.numVertices()), -1);
   for (const RealJoint& joint : scan.joints) {
     if (!joint.limb) continue;
-    // A limb's root (a ball joint) swings every way: one directional key per quarter (flexion, and that axis turned
-    // about the bone by 90, 180 and 270 degrees); elsewhere one key for any swing.
+    const Band band = jointBand(w, skin, skeleton.bones[joint.bone].head, options.bandRadius * scan.limbRadius);
+    if (band.triangles.rows() == 0) continue;
+    std::vector<double> bandBlend(band.ids.size(), 0.0);  // the joint's blend b per band vertex
+    for (size_t i = 0; i < band.ids.size(); ++i) local[static_cast<size_t>(band.ids[i])] = static_cast<int>(i);
+    for (size_t i = 0; i < joint.blended.size(); ++i)
+      if (local[static_cast<size_t>(joint.blended[i])] >= 0)
+        bandBlend[static_cast<size_t>(local[static_cast<size_t>(joint.blended[i])])] = joint.blend[i];
+    for (int id : band.ids) local[static_cast<size_t>(id)] = -1;
+    // The swings are about axes across the bone's own rest Y (what Blender's driver measures the swing from): the
+    // reference flexion axis made perpendicular to it; a limb's root (a ball joint) swings every way: one directional
+    // key per quarter (that axis turned about the bone by 0, 90, 180 and 270 degrees); elsewhere one key for any swing.
+    const Vec3 boneY = skeleton.bones[joint.bone].rest.block<3, 1>(0, 1).normalized();
+    Vec3 flexion = joint.axis - joint.axis.dot(boneY) * boneY;
+    if (flexion.norm() < 1e-6) continue;
+    flexion.normalize();
     for (int quarter = 0; quarter < (joint.limbRoot ? 4 : 1); ++quarter) {
-      const Vec3 axis = Eigen::AngleAxisd(0.5 * kPi * quarter, joint.direction) * joint.axis;
+      const Vec3 axis = Eigen::AngleAxisd(0.5 * kPi * quarter, boneY) * flexion;
       VolumeKey key;
-      if (fitVolumeKey(skeleton, w, skin, normals, share, options, keyOptions, joint, axis, joint.limbRoot,
+      if (fitVolumeKey(skeleton, band, bandBlend, normals, share, options, keyOptions, joint, axis, joint.limbRoot,
                        scan.limbRadius, key))
         keys.push_back(std::move(key));
     }
@@ -584,12 +595,12 @@ double volumeKeyWeight(const VolumeKey& key, const Eigen::Quaterniond& localRota
   if (!(n2 > 0.0)) return 0.0;
   const Eigen::Quaterniond q(localRotation.coeffs() / std::sqrt(n2));
   const double s = q.x() * q.x() + q.z() * q.z();
-  const double weight = std::clamp(s * (key.k1 + key.k2 * s), 0.0, 1.0);
-  if (key.swing.squaredNorm() == 0.0) return weight;
+  const double weight = s * (key.k1 + key.k2 * s);
+  if (key.swing.squaredNorm() == 0.0) return std::clamp(weight, 0.0, 1.0);
   // The bone's Y axis leans by (a, c) / 2 in its rest frame's x and z (u(q) in correctives.h).
   const double a = q.x() * q.y() - q.w() * q.z(), c = q.y() * q.z() + q.w() * q.x();
   const double toward = std::max(key.swing.x() * a + key.swing.y() * c, 0.0);
-  return weight * toward * toward / std::max(a * a + c * c, kLeanFloor);
+  return std::clamp(weight * toward * toward / std::max(a * a + c * c, kLeanFloor), 0.0, 1.0);
 }
 
 void applyVolumeKeys(const std::vector<VolumeKey>& keys, const std::vector<Eigen::Quaterniond>& localRotations,
