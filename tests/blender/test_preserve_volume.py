@@ -462,10 +462,12 @@ def test_volume_keys_of_a_character_nobody_here_made_play_as_the_core_and_export
     names = [n for mesh in doc["meshes"] for n in mesh.get("extras", {}).get("targetNames", [])]
     assert set(moved) <= set(names), (sorted(moved), names)
     assert any(c["target"]["path"] == "weights" for a in doc.get("animations", []) for c in a["channels"])
+    restored = 0
     for m in meshes:
         if entries[m.name]:
             paths = {fc.data_path for fc in m.data.shape_keys.animation_data.drivers}
-            assert all(f'key_blocks["{e["name"]}"].value' in paths for e in entries[m.name]), m.name
+            restored += sum(f'key_blocks["{e["name"]}"].value' in paths for e in entries[m.name])
+    assert restored == sum(len(es) for es in entries.values()) > 0, restored
 
 
 runner.run()
