@@ -9,7 +9,8 @@ animated elbow + shoulder on the synthetic arm at ~50k vertices, in one run:
                        evaluates twice (the route for IK / constraint-driven skeletons)
     bound, live+surf   the same with the muscle surfaces shown (written every frame)
     bound, baked       muscle joints baked to the Action, live update off (what a farm / no add-on plays)
-    bound, baked, linear  the same with the Volume Blend off (linear blending, as the paper)
+    bound, baked, linear  the same with the Volume Blend off (linear blending, as the paper; its volume keys muted)
+    bound, baked, no keys  the Volume Blend on, its volume keys muted (what the driven shape keys cost)
     bound, baked, 4 infl.  bound with Max Influences 4 instead of 8, baked (Volume Blend on)
     bound, PC2 cache   the skin baked to a PC2 by the core and played by a Mesh Cache modifier, the Armature
                        modifier muted (Bake PC2 with Add Mesh Cache Modifier; no add-on needed to play)
@@ -177,9 +178,13 @@ def main():
     first_mod, blend_mod = binding.armature_modifier(skin, arm), binding.volume_blend_modifier(skin, arm)
     first_group = first_mod.vertex_group
 
-    def configure(live, surfaces, constrained=False, volume_blend=True):
+    volume_keys = addon_module("volume_keys")
+    print(f"  volume keys on the bound arm: {len(volume_keys.stored(skin))}")
+
+    def configure(live, surfaces, constrained=False, volume_blend=True, keys=True):
         """The bound scene's settings; without the volume blend, its second modifier off and the first one over
-        the whole skin (as Bind leaves a rig bound with Volume Blend off)."""
+        the whole skin, its volume keys muted (as Bind leaves a rig bound with Volume Blend off)."""
+        volume_keys.set_muted(skin, not (volume_blend and keys))
         state.live = live
         state.collection.hide_viewport = not surfaces
         constraint.mute = not constrained
@@ -188,7 +193,8 @@ def main():
 
     cases = [("bound, live", (True, False)), ("bound, live, 2-pass", (True, False, True)),
              ("bound, live+surfaces", (True, True)), ("bound, baked", (False, False)),
-             ("bound, baked, linear", (False, False, False, False)), ("bound, baked, 4 infl.", four_scene),
+             ("bound, baked, linear", (False, False, False, False)),
+             ("bound, baked, no keys", (False, False, False, True, False)), ("bound, baked, 4 infl.", four_scene),
              ("bound, PC2 cache", cached_scene), ("anchored, live", anchored_scene),
              ("plain, Preserve Volume", pv_scene)]
     passes = {name: [] for name, _c in cases}
