@@ -23,7 +23,6 @@ constexpr int kShareSteps = 100;  // shares tried: 0, 1/100, ..., 1
 constexpr double kLeanFloor = 1e-12;  // volumeKeyWeight: a lean this small is the rest pose (Blender's driver too)
 constexpr double kRounding = 1e-9;  // band changes this small are rounding (a band no bend changes keeps share 1)
 constexpr double kVisibleOffset = 0.01;  // volume keys: the smallest offset kept, in limb radii
-constexpr int kFoldShrinks = 12;  // volume keys: times a key shrinks by a fifth before it is dropped for folding the skin
 
 // ============================================================================
 // Checks
@@ -427,14 +426,13 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     const double outer = 0.5 * (1.0 - normal.dot(side));
     profile.row(i) = limbRadius * bandBlend[static_cast<size_t>(i)] * taper * outer * normal.transpose();
   }
-  // The band bent by `degrees` about `axis` under the blend: its positions, how one unit of the profile moves it
-  // (each vertex's blended affine map is linear in its input), and (optional) its linear skin's positions.
-  auto bent = [&](double degrees, Points& base, Points& moved, Points* linear = nullptr) {
+  // The band bent by `degrees` about `axis` under the blend: its positions, and how one unit of the profile moves it
+  // (each vertex's blended affine map is linear in its input).
+  auto bent = [&](double degrees, Points& base, Points& moved) {
     VertexTransforms linearMaps, dqMaps;
     bandMaps(skeleton, band, turnedSubtree(skeleton, joint, degrees, axis), linearMaps, dqMaps);
     base.resize(n, 3);
     moved.resize(n, 3);
-    if (linear) *linear = applyMaps(linearMaps, band.rest);
     for (int i = 0; i < n; ++i) {
       const double s = share[band.ids[i]];
       Eigen::Matrix<double, 3, 4> m;
@@ -500,21 +498,27 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     const double half = std::sin(0.5 * degrees * kPi / 180.0);
     return std::clamp(half * half * (key.k1 + key.k2 * half * half), 0.0, 1.0);
   };
-  // Never fold the skin more than the linear skin or the blend alone do, at any flexion in 15-degree steps up to the
-  // largest sample: the key shrinks by a fifth until it does not (dropped after kFoldShrinks).
-  const double largest = *std::max_element(key.sampleDegrees.begin(), key.sampleDegrees.end());
-  Points linear;
-  for (double degrees = 15.0; degrees <= largest + 1e-9 && peak > 0.0; degrees += 15.0) {
-    bent(degrees, base, moved, &linear);
-    const int folds = selfIntersections(base, band.triangles);
-    for (int it = 0; peak > 0.0 && selfIntersections(Points(base + weightAt(degrees) * peak * moved), band.triangles) > folds; ++it)
-      peak = it < kFoldShrinks ? 0.8 * peak : 0.0;
-  }
   // A key that moves the skin less than kVisibleOffset limb radii changes nothing one could see (and only flips
   // contacts the bent skin already has).
   double reachOut = 0.0;
   for (int i = 0; i < n; ++i) reachOut = std::max(reachOut, profile.row(i).norm());
-  if (!(peak * reachOut > kVisibleOffset * limbRadius)) return false;
+  const double smallest = kVisibleOffset * limbRadius / std::max(reachOut, 1e-300);
+  if (!(peak > smallest)) return false;
+  // Never fold the skin more than the blend alone does, at every 30 degrees of flexion and at the largest sample: the
+  // key halves until it does not (dropped once it would move the skin less than kVisibleOffset).
+  const double largest = *std::max_element(key.sampleDegrees.begin(), key.sampleDegrees.end());
+  std::vector<double> checked;
+  for (double degrees = 30.0; degrees < largest - 1e-9; degrees += 30.0) checked.push_back(degrees);
+  checked.push_back(largest);
+  std::reverse(checked.begin(), checked.end());  // the deepest bend folds first: a key dropped there costs least
+  for (double degrees : checked) {
+    if (!(peak > smallest)) break;
+    bent(degrees, base, moved);
+    const int folds = selfIntersections(base, band.triangles);
+    while (peak > smallest && selfIntersections(Points(base + weightAt(degrees) * peak * moved), band.triangles) > folds)
+      peak *= 0.5;
+  }
+  if (!(peak > smallest)) return false;
   key.bone = joint.bone;
   key.axis = axis;
   if (directional) {  // the side the bone's tail swings to, in the bone's rest frame (x, z)
