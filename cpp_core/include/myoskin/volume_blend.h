@@ -115,7 +115,7 @@ struct VolumeKeyOptions {
   // the band's volume; the weight's two coefficients fit the amplitudes found there (least squares in s).
   std::vector<double> sampleDegrees = {45.0, 90.0, 135.0};
   // The largest offset, in body limb radii (the profile is the joint's blend b, 1 where the skin blends evenly across
-  // it, tapering to 0 at the band's edge).
+  // it, tapering to 0 at the band's edge, on the outer side, all round or on the crease's side).
   double maxOffset = 1.0;
 };
 
@@ -124,7 +124,9 @@ struct VolumeKeyOptions {
 // bones, each joint a little) whose band still loses volume under the volume blend
 // `share` (#V, computeDqsShare's) when the joint bends about its reference flexion axis. At each sample flexion the
 // amplitude is the one that keeps the band's cone volume (at most maxOffset limb radii), lowered until the band has
-// no more self-intersecting triangle pairs than without the key. Deterministic. Throws InputError on what
+// no more self-intersecting triangle pairs than without the key; the weight's fit is checked the same way every 30
+// degrees. The profile swells the outer side, the skin all round or the crease's side, whichever keeps more of the
+// band's volume over the samples (fitted in parallel). Deterministic. Throws InputError on what
 // computeDqsShare refuses, a share of the wrong size or outside [0, 1], no samples or a sample outside (0, 180], or
 // maxOffset <= 0.
 std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWeights& skeletonWeights,

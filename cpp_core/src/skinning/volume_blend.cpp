@@ -5,9 +5,12 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <string>
 
 #include <Eigen/Geometry>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "myoskin/character.h"
 #include "myoskin/errors.h"
@@ -407,15 +410,15 @@ namespace {
 bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<double>& bandBlend,
                   const Points& normals, const Eigen::VectorXd& share, const VolumeBlendOptions& o,
                   const VolumeKeyOptions& ko, const RealJoint& joint, const Vec3& axis, bool directional,
-                  double limbRadius, VolumeKey& key) {
+                  double limbRadius, double sideSign, VolumeKey& key) {
   const Vec3 head = skeleton.bones[joint.bone].head;
   const double reach = o.bandRadius * limbRadius;
   const double v0 = coneVolume(band.rest, band.triangles, head);
   if (!(std::abs(v0) > 0.0)) return false;
   const int n = static_cast<int>(band.ids.size());
-  // Profile: the joint's blend b, tapered to 0 at the band's edge, times (1 - n . side) / 2 so the skin facing the
-  // way the limb bends (the crease, which folds) stays and the outer side swells, along the rest normal n, in limb
-  // radii.
+  // Profile: the joint's blend b, tapered to 0 at the band's edge, times (1 - sideSign n . side) / 2, along the rest
+  // normal n, in limb radii: sideSign 1 keeps the skin facing the way the limb bends (the crease) and swells the outer
+  // side, 0 swells all round, -1 swells the crease's side (a shoulder's deltoid on abduction).
   const Vec3 boneY = skeleton.bones[joint.bone].rest.block<3, 1>(0, 1).normalized();
   const Vec3 side = axis.cross(boneY).normalized();
   Points profile = Points::Zero(n, 3);
@@ -423,7 +426,7 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     const double d = (band.rest.row(i).transpose() - head).norm() / reach;
     const double taper = std::pow(std::max(0.0, 1.0 - d * d), 2);
     const Vec3 normal = normals.row(band.ids[i]).transpose();
-    const double outer = 0.5 * (1.0 - normal.dot(side));
+    const double outer = 0.5 * (1.0 - sideSign * normal.dot(side));
     profile.row(i) = limbRadius * bandBlend[static_cast<size_t>(i)] * taper * outer * normal.transpose();
   }
   // The band bent by `degrees` about `axis` under the blend: its positions, and how one unit of the profile moves it
@@ -446,6 +449,11 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   const double amax = ko.maxOffset;
   std::vector<double> s2, amplitude;
   Points base, moved;
+  // A key that moves the skin less than kVisibleOffset limb radii changes nothing one could see (and only flips
+  // contacts the bent skin already has).
+  double reachOut = 0.0;
+  for (int i = 0; i < n; ++i) reachOut = std::max(reachOut, profile.row(i).norm());
+  const double smallest = kVisibleOffset * limbRadius / std::max(reachOut, 1e-300);
   for (double degrees : ko.sampleDegrees) {
     bent(degrees, base, moved);
     const double before = change(base);
@@ -459,6 +467,10 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
         for (int it = 0; it < 40; ++it) (change(base + 0.5 * (lo + hi) * moved) < 0.0 ? lo : hi) = 0.5 * (lo + hi);
         a = hi;
       }
+      // No more folding than the blend alone at this flexion: the amplitude halves until it does not.
+      const int folds = selfIntersections(base, band.triangles);
+      while (a > smallest && selfIntersections(Points(base + a * moved), band.triangles) > folds) a *= 0.5;
+      if (!(a > smallest)) a = 0.0;
     }
     const double half = std::sin(0.5 * degrees * kPi / 180.0);
     s2.push_back(half * half);
@@ -498,11 +510,6 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     const double half = std::sin(0.5 * degrees * kPi / 180.0);
     return std::clamp(half * half * (key.k1 + key.k2 * half * half), 0.0, 1.0);
   };
-  // A key that moves the skin less than kVisibleOffset limb radii changes nothing one could see (and only flips
-  // contacts the bent skin already has).
-  double reachOut = 0.0;
-  for (int i = 0; i < n; ++i) reachOut = std::max(reachOut, profile.row(i).norm());
-  const double smallest = kVisibleOffset * limbRadius / std::max(reachOut, 1e-300);
   if (!(peak > smallest)) return false;
   // Never fold the skin more than the blend alone does, at every 30 degrees of flexion and at the largest sample: the
   // key halves until it does not (dropped once it would move the skin less than kVisibleOffset).
@@ -564,18 +571,33 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
     throw InputError("volume keys: maxOffset must be > 0, got " + std::to_string(keyOptions.maxOffset));
   const JointScan scan = scanJoints(skeleton, w, skin, options);
   const Points normals = vertexNormals(skin.vertices, skin.triangles);
-  std::vector<VolumeKey> keys;
+  // One fit per (joint, swing axis, profile side), independent: bands first, then the fits in parallel.
+  struct JointBand {
+    const RealJoint* joint;
+    Band band;
+    std::vector<double> blend;  // the joint's blend b per band vertex
+  };
+  struct Fit {
+    size_t band;
+    Vec3 axis;
+    double sideSign;
+    bool ok = false;
+    VolumeKey key;
+  };
+  constexpr double kSides[] = {1.0, 0.0, -1.0};
+  std::vector<JointBand> bands;
+  std::vector<Fit> fits;
   std::vector<int> local(static_cast<size_t>(skin.numVertices()), -1);
   for (const RealJoint& joint : scan.joints) {
     if (!joint.limb) continue;
-    const Band band = jointBand(w, skin, skeleton.bones[joint.bone].head, options.bandRadius * scan.limbRadius);
-    if (band.triangles.rows() == 0) continue;
-    std::vector<double> bandBlend(band.ids.size(), 0.0);  // the joint's blend b per band vertex
-    for (size_t i = 0; i < band.ids.size(); ++i) local[static_cast<size_t>(band.ids[i])] = static_cast<int>(i);
+    JointBand jb{&joint, jointBand(w, skin, skeleton.bones[joint.bone].head, options.bandRadius * scan.limbRadius), {}};
+    if (jb.band.triangles.rows() == 0) continue;
+    jb.blend.assign(jb.band.ids.size(), 0.0);
+    for (size_t i = 0; i < jb.band.ids.size(); ++i) local[static_cast<size_t>(jb.band.ids[i])] = static_cast<int>(i);
     for (size_t i = 0; i < joint.blended.size(); ++i)
       if (local[static_cast<size_t>(joint.blended[i])] >= 0)
-        bandBlend[static_cast<size_t>(local[static_cast<size_t>(joint.blended[i])])] = joint.blend[i];
-    for (int id : band.ids) local[static_cast<size_t>(id)] = -1;
+        jb.blend[static_cast<size_t>(local[static_cast<size_t>(joint.blended[i])])] = joint.blend[i];
+    for (int id : jb.band.ids) local[static_cast<size_t>(id)] = -1;
     // The swings are about axes across the bone's own rest Y (what Blender's driver measures the swing from): the
     // reference flexion axis made perpendicular to it; a limb's root (a ball joint) swings every way: one directional
     // key per quarter (that axis turned about the bone by 0, 90, 180 and 270 degrees); elsewhere one key for any swing.
@@ -583,13 +605,35 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
     Vec3 flexion = joint.axis - joint.axis.dot(boneY) * boneY;
     if (flexion.norm() < 1e-6) continue;
     flexion.normalize();
-    for (int quarter = 0; quarter < (joint.limbRoot ? 4 : 1); ++quarter) {
-      const Vec3 axis = Eigen::AngleAxisd(0.5 * kPi * quarter, boneY) * flexion;
-      VolumeKey key;
-      if (fitVolumeKey(skeleton, band, bandBlend, normals, share, options, keyOptions, joint, axis, joint.limbRoot,
-                       scan.limbRadius, key))
-        keys.push_back(std::move(key));
+    bands.push_back(std::move(jb));
+    for (int quarter = 0; quarter < (joint.limbRoot ? 4 : 1); ++quarter)
+      for (double sideSign : kSides)
+        fits.push_back(Fit{bands.size() - 1, Eigen::AngleAxisd(0.5 * kPi * quarter, boneY) * flexion, sideSign});
+  }
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, fits.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t f = r.begin(); f != r.end(); ++f) {
+      const JointBand& jb = bands[fits[f].band];
+      fits[f].ok = fitVolumeKey(skeleton, jb.band, jb.blend, normals, share, options, keyOptions, *jb.joint,
+                                fits[f].axis, jb.joint->limbRoot, scan.limbRadius, fits[f].sideSign, fits[f].key);
     }
+  });
+  // Per swing axis, the profile's side that keeps the most of the band's volume over the samples (the outer side's
+  // swell first on a tie; sides fitted and guarded against folds alike).
+  std::vector<VolumeKey> keys;
+  constexpr size_t kNumSides = sizeof(kSides) / sizeof(kSides[0]);
+  for (size_t first = 0; first < fits.size(); first += kNumSides) {
+    Fit* best = nullptr;
+    double bestLoss = std::numeric_limits<double>::infinity();
+    for (size_t f = first; f < first + kNumSides; ++f) {
+      if (!fits[f].ok) continue;
+      double loss = 0.0;
+      for (double c : fits[f].key.changeWith) loss += std::abs(c);
+      if (loss < bestLoss) {
+        bestLoss = loss;
+        best = &fits[f];
+      }
+    }
+    if (best) keys.push_back(std::move(best->key));
   }
   return keys;
 }
