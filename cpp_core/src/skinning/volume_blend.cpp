@@ -608,7 +608,8 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
     bands.push_back(std::move(jb));
     for (int quarter = 0; quarter < (joint.limbRoot ? 4 : 1); ++quarter)
       for (double sideSign : kSides)
-        fits.push_back(Fit{bands.size() - 1, Eigen::AngleAxisd(0.5 * kPi * quarter, boneY) * flexion, sideSign});
+        fits.push_back(
+            Fit{bands.size() - 1, Eigen::AngleAxisd(0.5 * kPi * quarter, boneY) * flexion, sideSign, false, {}});
   }
   tbb::parallel_for(tbb::blocked_range<size_t>(0, fits.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t f = r.begin(); f != r.end(); ++f) {
