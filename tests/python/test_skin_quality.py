@@ -118,7 +118,8 @@ def test_generated_biped_elbow_and_knee(core):
 
 def _assert_joint_targets(rows, labels):
     """Issue 14 item 3 on the default Bind (volume blend + volume keys: myoskin_vk): the band's change at most half of
-    LBS's and no larger than DQS's, no more self-intersecting triangle pairs than LBS."""
+    LBS's and no larger than DQS's (to 0.1 point: DQS here is numpy's, the blend the core's skinner), no more
+    self-intersecting triangle pairs than LBS."""
     checked = 0
     for label in labels:
         r = rows[label]
@@ -127,7 +128,7 @@ def _assert_joint_targets(rows, labels):
               f"{r['crossings_lbs']}, + keys {r['crossings_myoskin_vk']}")
         assert r["lbs"] < -0.1, label  # the joint really collapses under LBS (the measure can fail)
         assert abs(r["myoskin_vk"]) <= 0.5 * abs(r["lbs"]), label
-        assert abs(r["myoskin_vk"]) <= abs(r["dqs"]), label
+        assert abs(r["myoskin_vk"]) <= abs(r["dqs"]) + 1e-3, label
         assert r["crossings_myoskin_vk"] <= r["crossings_lbs"], label
         checked += 1
     assert checked == len(labels) > 0
@@ -151,7 +152,10 @@ def test_volume_keys_keep_the_joints_of_characters_nobody_here_made(core, name, 
     -16.7 % (-42.9), hind hock +1.4 % (-22.8)."""
     character = core.load_character(shared(path), require_weights=True)
     table = skin_quality.HORSE_JOINTS if name == "horse" else skin_quality.QUATERNIUS_JOINTS
-    _assert_joint_targets(rows_by_joint(core, character, table), joints)
+    rows = rows_by_joint(core, character, table)
+    _assert_joint_targets(rows, joints)
+    if name == "horse":  # the hock's key picks its side (the outer side's swell alone left -4.9 %)
+        assert rows["hind hock"]["myoskin_vk"] > -0.02
 
 
 def test_volume_keys_keep_a_held_out_generated_biped_s_joints(core):

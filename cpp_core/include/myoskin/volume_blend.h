@@ -125,8 +125,9 @@ struct VolumeKeyOptions {
 // `share` (#V, computeDqsShare's) when the joint bends about its reference flexion axis. At each sample flexion the
 // amplitude is the one that keeps the band's cone volume (at most maxOffset limb radii), lowered until the band has
 // no more self-intersecting triangle pairs than without the key; the weight's fit is checked the same way every 30
-// degrees. The profile swells the outer side, the skin all round or the crease's side, whichever keeps more of the
-// band's volume over the samples (fitted in parallel). Deterministic. Throws InputError on what
+// degrees. The profile swells the outer side, the skin all round or the crease's side, whichever leaves the least sum
+// of |band volume change| over the samples (the three fitted in parallel on TBB's threads; the choice does not depend
+// on them). Deterministic. Throws InputError on what
 // computeDqsShare refuses, a share of the wrong size or outside [0, 1], no samples or a sample outside (0, 180], or
 // maxOffset <= 0.
 std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWeights& skeletonWeights,

@@ -467,7 +467,8 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
         for (int it = 0; it < 40; ++it) (change(base + 0.5 * (lo + hi) * moved) < 0.0 ? lo : hi) = 0.5 * (lo + hi);
         a = hi;
       }
-      // No more folding than the blend alone at this flexion: the amplitude halves until it does not.
+      // No more folding than the blend alone at this flexion: the amplitude halves until it does not; an amplitude
+      // under the visible offset (halved there or small from the start) is none.
       const int folds = selfIntersections(base, band.triangles);
       while (a > smallest && selfIntersections(Points(base + a * moved), band.triangles) > folds) a *= 0.5;
       if (!(a > smallest)) a = 0.0;
