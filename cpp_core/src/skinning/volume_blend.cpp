@@ -6,6 +6,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <map>
 #include <string>
 
 #include <Eigen/Geometry>
@@ -404,13 +405,23 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
 
 namespace {
 
+// A band's bends about one swing axis, shared by the fits of its profile sides: per flexion the vertices' linear and
+// dual-quaternion maps and the self-intersecting pairs under the blend alone (-1 until counted).
+struct BendCache {
+  struct Bend {
+    VertexTransforms linear, dualQuat;
+    int folds = -1;
+  };
+  std::map<double, Bend> bends;
+};
+
 // One joint's key for swings about `axis` (unit; `directional`: the key acts only on swings toward that side): the
 // offsets' profile and, per sample flexion, the amplitude that keeps the band's volume; then the weight's fit. False
 // when the band keeps its volume at every sample (no key).
 bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<double>& bandBlend,
                   const Points& normals, const Eigen::VectorXd& share, const VolumeBlendOptions& o,
                   const VolumeKeyOptions& ko, const RealJoint& joint, const Vec3& axis, bool directional,
-                  double limbRadius, double sideSign, VolumeKey& key) {
+                  double limbRadius, double sideSign, BendCache& cache, VolumeKey& key) {
   const Vec3 head = skeleton.bones[joint.bone].head;
   const double reach = o.bandRadius * limbRadius;
   const double v0 = coneVolume(band.rest, band.triangles, head);
@@ -431,9 +442,11 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   }
   // The band bent by `degrees` about `axis` under the blend: its positions, and how one unit of the profile moves it
   // (each vertex's blended affine map is linear in its input).
-  auto bent = [&](double degrees, Points& base, Points& moved) {
-    VertexTransforms linearMaps, dqMaps;
-    bandMaps(skeleton, band, turnedSubtree(skeleton, joint, degrees, axis), linearMaps, dqMaps);
+  auto bent = [&](double degrees, Points& base, Points& moved) -> BendCache::Bend& {
+    BendCache::Bend& bend = cache.bends[degrees];
+    if (bend.linear.rows() == 0)
+      bandMaps(skeleton, band, turnedSubtree(skeleton, joint, degrees, axis), bend.linear, bend.dualQuat);
+    const VertexTransforms &linearMaps = bend.linear, &dqMaps = bend.dualQuat;
     base.resize(n, 3);
     moved.resize(n, 3);
     for (int i = 0; i < n; ++i) {
@@ -444,6 +457,11 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
       base.row(i) = (m.leftCols<3>() * band.rest.row(i).transpose() + m.col(3)).transpose();
       moved.row(i) = (m.leftCols<3>() * profile.row(i).transpose()).transpose();
     }
+    return bend;
+  };
+  auto folds = [&](BendCache::Bend& bend, const Points& base) {  // under the blend alone, counted once
+    if (bend.folds < 0) bend.folds = selfIntersections(base, band.triangles);
+    return bend.folds;
   };
   auto change = [&](const Points& p) { return (coneVolume(p, band.triangles, head) - v0) / std::abs(v0); };
   const double amax = ko.maxOffset;
@@ -455,7 +473,7 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   for (int i = 0; i < n; ++i) reachOut = std::max(reachOut, profile.row(i).norm());
   const double smallest = kVisibleOffset * limbRadius / std::max(reachOut, 1e-300);
   for (double degrees : ko.sampleDegrees) {
-    bent(degrees, base, moved);
+    BendCache::Bend& bend = bent(degrees, base, moved);
     const double before = change(base);
     double a = 0.0;
     const double most = change(base + amax * moved);
@@ -469,8 +487,7 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
       }
       // No more folding than the blend alone at this flexion: the amplitude halves until it does not; an amplitude
       // under the visible offset (halved there or small from the start) is none.
-      const int folds = selfIntersections(base, band.triangles);
-      while (a > smallest && selfIntersections(Points(base + a * moved), band.triangles) > folds) a *= 0.5;
+      while (a > smallest && selfIntersections(Points(base + a * moved), band.triangles) > folds(bend, base)) a *= 0.5;
       if (!(a > smallest)) a = 0.0;
     }
     const double half = std::sin(0.5 * degrees * kPi / 180.0);
@@ -521,9 +538,9 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   std::reverse(checked.begin(), checked.end());  // the deepest bend folds first: a key dropped there costs least
   for (double degrees : checked) {
     if (!(peak > smallest)) break;
-    bent(degrees, base, moved);
-    const int folds = selfIntersections(base, band.triangles);
-    while (peak > smallest && selfIntersections(Points(base + weightAt(degrees) * peak * moved), band.triangles) > folds)
+    BendCache::Bend& bend = bent(degrees, base, moved);
+    while (peak > smallest &&
+           selfIntersections(Points(base + weightAt(degrees) * peak * moved), band.triangles) > folds(bend, base))
       peak *= 0.5;
   }
   if (!(peak > smallest)) return false;
@@ -572,7 +589,7 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
     throw InputError("volume keys: maxOffset must be > 0, got " + std::to_string(keyOptions.maxOffset));
   const JointScan scan = scanJoints(skeleton, w, skin, options);
   const Points normals = vertexNormals(skin.vertices, skin.triangles);
-  // One fit per (joint, swing axis, profile side), independent: bands first, then the fits in parallel.
+  // One fit per (joint, swing axis, profile side): bands first, then the fits.
   struct JointBand {
     const RealJoint* joint;
     Band band;
@@ -612,17 +629,23 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
         fits.push_back(
             Fit{bands.size() - 1, Eigen::AngleAxisd(0.5 * kPi * quarter, boneY) * flexion, sideSign, false, {}});
   }
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, fits.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t f = r.begin(); f != r.end(); ++f) {
-      const JointBand& jb = bands[fits[f].band];
-      fits[f].ok = fitVolumeKey(skeleton, jb.band, jb.blend, normals, share, options, keyOptions, *jb.joint,
-                                fits[f].axis, jb.joint->limbRoot, scan.limbRadius, fits[f].sideSign, fits[f].key);
+  // In parallel per swing axis; its sides in turn, sharing the band's bends.
+  constexpr size_t kNumSides = sizeof(kSides) / sizeof(kSides[0]);
+  const tbb::blocked_range<size_t> axes(0, fits.size() / kNumSides, 1);
+  tbb::parallel_for(axes, [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t g = r.begin(); g != r.end(); ++g) {
+      BendCache cache;
+      for (size_t f = g * kNumSides; f < (g + 1) * kNumSides; ++f) {
+        const JointBand& jb = bands[fits[f].band];
+        fits[f].ok = fitVolumeKey(skeleton, jb.band, jb.blend, normals, share, options, keyOptions, *jb.joint,
+                                  fits[f].axis, jb.joint->limbRoot, scan.limbRadius, fits[f].sideSign, cache,
+                                  fits[f].key);
+      }
     }
   });
-  // Per swing axis, the profile's side that keeps the most of the band's volume over the samples (the outer side's
+  // Per swing axis, the profile's side that leaves the least band volume change over the samples (the outer side's
   // swell first on a tie; sides fitted and guarded against folds alike).
   std::vector<VolumeKey> keys;
-  constexpr size_t kNumSides = sizeof(kSides) / sizeof(kSides[0]);
   for (size_t first = 0; first < fits.size(); first += kNumSides) {
     Fit* best = nullptr;
     double bestLoss = std::numeric_limits<double>::infinity();
