@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The README's gallery: bent joints of a character under plain linear blend skinning (LBS), dual quaternions
-(DQS, Blender's Preserve Volume) and Myoskin (its muscle joints with Preserve Volume, the default Bind), side
-by side, and the extracted muscles under a translucent skin. Runs inside Blender, headless:
+(DQS, Blender's Preserve Volume) and Myoskin (the default Bind: its muscle joints with the Volume Blend and its
+volume keys), side by side, and the extracted muscles under a translucent skin. Runs inside Blender, headless:
 
     BLENDER_USER_SCRIPTS=build/blender_scripts blender -b --factory-startup --python-exit-code 1 \\
         --addons myoskin --python examples/render_gallery.py -- CHARACTER.glb -o DIR
@@ -106,6 +106,8 @@ def render_joints(core, character, muscles, out, args):
     sj, sw = np.asarray(character.weight_joints), np.asarray(character.weight_values)
     names, heads = list(character.bone_names), np.asarray(character.bone_heads)
     bone_rest, combined_rest = np.asarray(character.bone_rest), core.combined_rest_matrices(character, rig)
+    share = np.asarray(core.compute_dqs_share(character))
+    keys = core.compute_volume_keys(character, share)
     limb_radius = core.extract_muscles(character, build_surfaces=False)[1]["limb_radius"]
     rows = {r["label"]: r for r in skin_quality.measure(core, character, muscles, skin_quality.MAKEHUMAN_JOINTS)}
     scene = bpy.context.scene
@@ -119,7 +121,8 @@ def render_joints(core, character, muscles, out, args):
         skins = [
             ("LBS", core.skin(rest, sj, sw, skel)),
             ("DQS", core.skin(rest, sj, sw, skel, preserve_volume=True, rest_matrices=bone_rest)),
-            ("Myoskin", core.skin(rest, hj, hw, full, preserve_volume=True, rest_matrices=combined_rest)),
+            ("Myoskin", core.skin(skin_quality.with_volume_keys(core, character, rest, keys, pose), hj, hw, full,
+                                  dqs_share=share, rest_matrices=combined_rest)),
         ]
         joint = pose[names.index(bone)][:3, 3]
         empty_scene()
@@ -143,7 +146,7 @@ def render_joints(core, character, muscles, out, args):
         r = rows.get(label)
         if r is not None:
             log(f"{file_name}.jpg: {label} {degrees:g} deg, band volume LBS {100 * r['lbs']:+.1f} %, DQS "
-                f"{100 * r['dqs']:+.1f} %, Myoskin {100 * r['myoskin_pv']:+.1f} %")
+                f"{100 * r['dqs']:+.1f} %, Myoskin {100 * r['myoskin_vk']:+.1f} %")
 
 
 def render_muscles(character, muscles, out):
