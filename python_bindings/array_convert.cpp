@@ -1,4 +1,6 @@
 // numpy <-> core conversions shared by the module's parts (stacks of 4x4 matrices, poses).
+#include <algorithm>
+
 #include "bindings.h"
 #include "myoskin/errors.h"
 
@@ -32,6 +34,12 @@ Pose poseFromArray(const py::array_t<double, py::array::c_style | py::array::for
     throw InputError("pose has " + std::to_string(p.matrices.size()) + " matrices, the skeleton has " +
                      std::to_string(numBones) + " bones");
   return p;
+}
+
+py::array_t<int32_t> indexArray(const std::vector<int>& values) {
+  py::array_t<int32_t> out(py::array::ShapeContainer{static_cast<py::ssize_t>(values.size())});
+  std::copy(values.begin(), values.end(), out.mutable_data());
+  return out;
 }
 
 }  // namespace myoskin::python

@@ -94,10 +94,7 @@ void bindCharacter(py::module_& m) {
           "weight_values", [](const Character& c) -> const WeightMatrix& { return c.weights.weights; },
           py::return_value_policy::reference_internal, "#V by K float64 weights")
       .def_property_readonly("source_to_welded",
-                             [](const Character& c) {
-                               return py::array_t<int32_t>(static_cast<py::ssize_t>(c.sourceToWelded.size()),
-                                                           c.sourceToWelded.data());
-                             })
+                             [](const Character& c) { return indexArray(c.sourceToWelded); })
       .def_readonly("source_vertex_count", &Character::sourceVertexCount)
       .def_property_readonly("pieces",
                              [](const Character& c) {

@@ -204,7 +204,7 @@ void bindCorrectives(py::module_& m) {
           py::dict d;
           d["bone"] = c.skeleton.bones[k.bone].name;
           d["bone_index"] = k.bone;
-          d["vertices"] = py::array_t<int>(static_cast<py::ssize_t>(k.vertices.size()), k.vertices.data());
+          d["vertices"] = indexArray(k.vertices);
           d["offsets"] = pointsToArray(k.offsets);
           d["k1"] = k.k1;
           d["k2"] = k.k2;

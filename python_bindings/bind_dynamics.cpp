@@ -333,7 +333,8 @@ void bindDynamics(py::module_& m) {
           "frame) as another SculptDeltas over the same mesh gave them.")
       .def_property_readonly("framed",
                              [](const SculptDeltas& d) {
-                               py::array_t<bool> a(static_cast<py::ssize_t>(d.framed().size()));
+                               const auto n = static_cast<py::ssize_t>(d.framed().size());
+                               py::array_t<bool> a(py::array::ShapeContainer{n});  // not (n): see indexArray
                                for (size_t v = 0; v < d.framed().size(); ++v) a.mutable_at(v) = d.framed()[v] != 0;
                                return a;
                              },

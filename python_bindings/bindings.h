@@ -45,6 +45,9 @@ using MatrixStack = py::array_t<double, py::array::c_style | py::array::forcecas
 std::vector<Mat4> matricesFromArray(const MatrixStack& a, const char* what);
 // matrices -> N by 4 by 4 array (a copy).
 py::array_t<double> matricesToArray(const std::vector<Mat4>& m);
+// A copy of `values` as a 1-D int32 array. (Debian 12's pybind11 2.10 array_t(count[, ptr]) constructor can give
+// the array stride 0, every entry then reading as the first: build 1-D arrays from a ShapeContainer.)
+py::array_t<int32_t> indexArray(const std::vector<int>& values);
 // #B by 4 by 4 posed bone matrices (Blender's PoseBone.matrix) -> Pose; InputError on another size.
 Pose poseFromArray(const MatrixStack& a, int numBones);
 

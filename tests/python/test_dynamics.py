@@ -211,6 +211,8 @@ def test_simulate_vertex_influence_shape_offsets_stored_sculpt_and_track_states(
     captured = core.SculptDeltas(np.array(plain[7], dtype=np.float64), character.triangles, sculpt)
     stored = core.SculptDeltas.from_local(character.triangles, captured.local_deltas, captured.framed)
     assert captured.framed.dtype == bool and captured.framed.all()
+    flags = np.arange(len(v)) % 3 == 0  # mixed flags read back as stored
+    assert np.array_equal(core.SculptDeltas.from_local(character.triangles, captured.local_deltas, flags).framed, flags)
     out = core.simulate(character, skinner, poses, rig, 24.0, 1, sculpt_deltas=stored)
     assert np.abs(out[7] - sculpt).max() <= 1e-6 * size
     with pytest.raises(ValueError, match="framed"):

@@ -225,6 +225,10 @@ def test_several_meshes_load_as_one_character_or_one_by_name(core):
     whole = core.load_character(path, require_weights=True)
     assert [p[0] for p in whole.pieces] == ["Soldier_Body", "Soldier_Feet", "Soldier_Head", "Soldier_Legs"]
     assert sum(p[2] for p in whole.pieces) == whole.source_vertex_count == 15836
+    # Every stored vertex maps to a welded one and every welded vertex has one (an array of one repeated index, as a
+    # 1-D numpy array built with pybind11 2.10's count constructor gave, fails here).
+    welded = np.asarray(whole.source_to_welded)
+    assert welded.shape == (15836,) and np.array_equal(np.unique(welded), np.arange(whole.num_vertices))
     feet = core.load_character(path, require_weights=True, mesh="Soldier_Feet")
     assert feet.source_vertex_count == 2096 and [p[0] for p in feet.pieces] == ["Soldier_Feet"]
     muscles, report = core.extract_muscles(whole, build_surfaces=False)

@@ -122,6 +122,9 @@ def test_cli_deform_volume_blend_applies_the_volume_keys_as_the_module(core, tmp
     share = core.compute_dqs_share(character)
     keys = core.compute_volume_keys(character, share)
     assert any(k["bone"] == "LowerArm.L" for k in keys), [k["bone"] for k in keys]
+    for key in keys:  # each key's vertices ascend, one row of offsets each
+        vertices = np.asarray(key["vertices"])
+        assert vertices.shape == (len(key["offsets"]),) and np.all(np.diff(vertices) > 0), key["bone"]
     half = np.radians(120.0) / 2
     pose_file = tmp_path / "elbow.json"
     pose_file.write_text(json.dumps({"bones": {"LowerArm.L": {"rotation_quaternion": [np.cos(half), np.sin(half),
