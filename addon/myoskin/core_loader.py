@@ -11,6 +11,7 @@ No bpy here, so this module can be imported by background scripts and tests alik
 """
 import json
 import os
+import re
 import sys
 
 ADDON_DIR = os.path.dirname(os.path.abspath(__file__))
@@ -57,9 +58,23 @@ def blender_python_hint(version=None):
     return os.path.join(sys.prefix, "bin", f"python{version}")
 
 
-def check_build_info(info, addon_dir=ADDON_DIR, python_version=None):
+def running_numpy_version():
+    """This Python's NumPy version ("" without NumPy)."""
+    try:
+        import numpy
+    except ImportError:
+        return ""
+    return str(numpy.__version__)
+
+
+def _major_minor(version):
+    parts = re.findall(r"\d+", str(version))
+    return (int(parts[0]), int(parts[1])) if len(parts) >= 2 else None
+
+
+def check_build_info(info, addon_dir=ADDON_DIR, python_version=None, numpy_version=None):
     """Return None if `info` (a parsed build_info-X.Y.json, or None when absent) fits this Blender,
-    otherwise the message telling the user what to do. Pure function: tests pass fake dicts."""
+    otherwise the message telling the user what to do. Pure function: tests pass fake dicts (and versions)."""
     python_version = python_version or running_python_version()
     if info is None:
         return (f"Myoskin's compiled core is missing (no {BUILD_INFO_FILE.format(python_version)} in "
@@ -76,6 +91,14 @@ def check_build_info(info, addon_dir=ADDON_DIR, python_version=None):
                 f"runs {python_version}: rebuild with `{BUILD_COMMAND}` using "
                 f"-DPython3_EXECUTABLE={hint} (reconfigure: cmake -S . -B build "
                 f"-DPython3_EXECUTABLE={hint})")
+    # pybind11 before 2.12 reads NumPy 1's array descriptors: under NumPy 2 its arrays come out wrong or crash.
+    numpy_version = running_numpy_version() if numpy_version is None else numpy_version
+    pybind11 = _major_minor(info.get("pybind11_version", ""))
+    numpy = _major_minor(numpy_version)
+    if pybind11 is not None and pybind11 < (2, 12) and numpy is not None and numpy >= (2, 0):
+        return (f"Myoskin's compiled core was built with pybind11 {info.get('pybind11_version')}, which cannot "
+                f"exchange arrays with NumPy 2, and this Python has NumPy {numpy_version}: rebuild with "
+                f"`{BUILD_COMMAND}` against pybind11 2.12 or newer (Debian 13's), or use NumPy 1")
     module = info.get("module") or ""
     if not module or not os.path.isfile(os.path.join(addon_dir, module)):
         return (f"Myoskin's compiled core is missing ({module or 'the _core module'} not found in "

@@ -161,6 +161,14 @@ def test_guarded_import_messages():
     message = loader.check_build_info("garbage")
     assert "./myoskin.sh build" in message, message
 
+    # A core whose pybind11 predates NumPy 2 is refused under NumPy 2 (its arrays come out wrong), not loaded.
+    old = dict(good, pybind11_version="2.10.3")
+    message = loader.check_build_info(old, numpy_version="2.4.6")
+    assert "pybind11 2.10.3" in message and "NumPy 2.4.6" in message and "./myoskin.sh build" in message, message
+    assert loader.check_build_info(old, numpy_version="1.26.4") is None
+    assert loader.check_build_info(dict(good, pybind11_version="2.13.6"), numpy_version="2.4.6") is None
+    assert "pybind11_version" in good and loader.check_build_info(good) is None  # the build's own pair loads
+
 
 def test_core_for_another_python_is_named():
     """An add-on folder whose only core is for another Python: the message names both Pythons; a folder
