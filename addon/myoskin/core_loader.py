@@ -62,14 +62,26 @@ def running_numpy_version():
     """This Python's NumPy version ("" without NumPy)."""
     try:
         import numpy
-    except ImportError:
+        return str(numpy.__version__)
+    except Exception:  # noqa: BLE001 (a broken NumPy must not stop the add-on registering)
         return ""
-    return str(numpy.__version__)
 
 
 def _major_minor(version):
     parts = re.findall(r"\d+", str(version))
     return (int(parts[0]), int(parts[1])) if len(parts) >= 2 else None
+
+
+def numpy_problem(pybind11_version, numpy_version):
+    """The message when a core built with `pybind11_version` ("" = unknown, taken as old) cannot work with
+    `numpy_version` ("" = no NumPy), else None."""
+    pybind11, numpy = _major_minor(pybind11_version), _major_minor(numpy_version)
+    if numpy is None or numpy < (2, 0) or (pybind11 is not None and pybind11 >= (2, 12)):
+        return None
+    return (f"Myoskin's compiled core was built with pybind11 {pybind11_version or '(unknown, before 2.12)'}, which "
+            f"cannot exchange arrays with NumPy 2, and this Python has NumPy {numpy_version}: use NumPy 1 "
+            f"(pip install 'numpy<2'), or rebuild against pybind11 2.12 or newer (pip install 'pybind11>=2.12', then "
+            f"cmake -S . -B build -Dpybind11_DIR=$(python3 -m pybind11 --cmakedir) and `{BUILD_COMMAND}`)")
 
 
 def check_build_info(info, addon_dir=ADDON_DIR, python_version=None, numpy_version=None):
@@ -91,14 +103,12 @@ def check_build_info(info, addon_dir=ADDON_DIR, python_version=None, numpy_versi
                 f"runs {python_version}: rebuild with `{BUILD_COMMAND}` using "
                 f"-DPython3_EXECUTABLE={hint} (reconfigure: cmake -S . -B build "
                 f"-DPython3_EXECUTABLE={hint})")
-    # pybind11 before 2.12 reads NumPy 1's array descriptors: under NumPy 2 its arrays come out wrong or crash.
+    # pybind11 before 2.12 reads NumPy 1's array descriptors: under NumPy 2 its arrays come out wrong or crash. A core
+    # that does not say its pybind11 predates this check and is taken as old.
     numpy_version = running_numpy_version() if numpy_version is None else numpy_version
-    pybind11 = _major_minor(info.get("pybind11_version", ""))
-    numpy = _major_minor(numpy_version)
-    if pybind11 is not None and pybind11 < (2, 12) and numpy is not None and numpy >= (2, 0):
-        return (f"Myoskin's compiled core was built with pybind11 {info.get('pybind11_version')}, which cannot "
-                f"exchange arrays with NumPy 2, and this Python has NumPy {numpy_version}: rebuild with "
-                f"`{BUILD_COMMAND}` against pybind11 2.12 or newer (Debian 13's), or use NumPy 1")
+    problem = numpy_problem(info.get("pybind11_version", ""), numpy_version)
+    if problem:
+        return problem
     module = info.get("module") or ""
     if not module or not os.path.isfile(os.path.join(addon_dir, module)):
         return (f"Myoskin's compiled core is missing ({module or 'the _core module'} not found in "

@@ -168,6 +168,9 @@ def test_guarded_import_messages():
     assert loader.check_build_info(old, numpy_version="1.26.4") is None
     assert loader.check_build_info(dict(good, pybind11_version="2.13.6"), numpy_version="2.4.6") is None
     assert "pybind11_version" in good and loader.check_build_info(good) is None  # the build's own pair loads
+    unknown = {k: v for k, v in good.items() if k != "pybind11_version"}  # a core from before the check
+    assert "unknown" in loader.check_build_info(unknown, numpy_version="2.0.0")
+    assert loader.check_build_info(unknown, numpy_version="") is None  # no NumPy: nothing to exchange
 
 
 def test_core_for_another_python_is_named():

@@ -7,8 +7,29 @@ import pytest
 
 BUILD_DIR = os.environ.get("MYOSKIN_BUILD_DIR") or os.path.join(os.path.dirname(__file__), "..", "..", "build")
 SHARED_DIR = os.environ.get("MYOSKIN_SHARED_DIR") or os.path.join(os.path.dirname(__file__), "..", "..", "..", "shared")
-sys.path.insert(0, os.path.join(BUILD_DIR, "blender_scripts", "addons", "myoskin"))
+ADDON_DIR = os.path.join(BUILD_DIR, "blender_scripts", "addons", "myoskin")
+sys.path.insert(0, ADDON_DIR)
 
+
+def _refuse_a_core_this_numpy_breaks():
+    """Stop before importing a core whose pybind11 cannot read this Python's NumPy (it would segfault): the add-on's
+    own check (core_loader.numpy_problem) with the staged build_info."""
+    import importlib.util
+    import json
+
+    import numpy
+    spec = importlib.util.spec_from_file_location("myoskin_core_loader", os.path.join(ADDON_DIR, "core_loader.py"))
+    loader = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(loader)
+    info_path = os.path.join(ADDON_DIR, f"build_info-{sys.version_info.major}.{sys.version_info.minor}.json")
+    if os.path.exists(info_path):
+        with open(info_path, encoding="utf-8") as f:
+            problem = loader.numpy_problem(json.load(f).get("pybind11_version", ""), numpy.__version__)
+        if problem:
+            pytest.exit(f"{sys.executable}: {problem} (the README's test command uses /usr/bin/python3)", returncode=2)
+
+
+_refuse_a_core_this_numpy_breaks()
 import _core  # noqa: E402  (the compiled module, staged in the add-on folder)
 
 
