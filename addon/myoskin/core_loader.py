@@ -104,7 +104,7 @@ def check_build_info(info, addon_dir=ADDON_DIR, python_version=None, numpy_versi
                 f"-DPython3_EXECUTABLE={hint} (reconfigure: cmake -S . -B build "
                 f"-DPython3_EXECUTABLE={hint})")
     # pybind11 before 2.12 reads NumPy 1's array descriptors: under NumPy 2 its arrays come out wrong or crash. A core
-    # that does not say its pybind11 predates this check and is taken as old.
+    # whose build_info has no pybind11_version was built before this check and is taken as old.
     numpy_version = running_numpy_version() if numpy_version is None else numpy_version
     problem = numpy_problem(info.get("pybind11_version", ""), numpy_version)
     if problem:

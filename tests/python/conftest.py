@@ -15,16 +15,13 @@ def _refuse_a_core_this_numpy_breaks():
     """Stop before importing a core whose pybind11 cannot read this Python's NumPy (it would segfault): the add-on's
     own check (core_loader.numpy_problem) with the staged build_info."""
     import importlib.util
-    import json
 
-    import numpy
     spec = importlib.util.spec_from_file_location("myoskin_core_loader", os.path.join(ADDON_DIR, "core_loader.py"))
     loader = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(loader)
-    info_path = os.path.join(ADDON_DIR, f"build_info-{sys.version_info.major}.{sys.version_info.minor}.json")
-    if os.path.exists(info_path):
-        with open(info_path, encoding="utf-8") as f:
-            problem = loader.numpy_problem(json.load(f).get("pybind11_version", ""), numpy.__version__)
+    info = loader.read_build_info(ADDON_DIR)
+    if isinstance(info, dict):
+        problem = loader.numpy_problem(info.get("pybind11_version", ""), loader.running_numpy_version())
         if problem:
             pytest.exit(f"{sys.executable}: {problem} (the README's test command uses /usr/bin/python3)", returncode=2)
 
