@@ -192,7 +192,7 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
     bone_rest = np.asarray(character.bone_rest)
     combined_rest = core.combined_rest_matrices(character, rig)
     share = np.asarray(core.compute_dqs_share(character, **(share_options or {})))
-    keys = core.compute_volume_keys(character, share)
+    keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=hj, weight_values=hw)
     rows = []
     for label, bone, hinge, upper, direction, degrees in joints:
         if bone not in names:

@@ -416,7 +416,8 @@ BoundSkin bindFromArgs(const Args& args, const std::string& command, const std::
   if (volumeBlend) {  // shares from the skeleton weights; the joints' rest frames shape the dual-quaternion part
     const Eigen::VectorXd share = computeDqsShare(c.skeleton, c.weights, c.mesh);
     b.options.dqsShare.assign(share.data(), share.data() + share.size());
-    b.volumeKeys = computeVolumeKeys(c.skeleton, c.weights, c.mesh, share);
+    b.volumeKeys = b.rig ? computeVolumeKeys(c.skeleton, c.weights, c.mesh, share, {}, {}, b.rig.get(), &b.weights)
+                         : computeVolumeKeys(c.skeleton, c.weights, c.mesh, share);
   }
   if (b.options.preserveVolume || volumeBlend) {
     if (b.rig) {

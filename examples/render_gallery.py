@@ -107,7 +107,7 @@ def render_joints(core, character, muscles, out, args):
     names, heads = list(character.bone_names), np.asarray(character.bone_heads)
     bone_rest, combined_rest = np.asarray(character.bone_rest), core.combined_rest_matrices(character, rig)
     share = np.asarray(core.compute_dqs_share(character))
-    keys = core.compute_volume_keys(character, share)
+    keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=hj, weight_values=hw)
     limb_radius = core.extract_muscles(character, build_surfaces=False)[1]["limb_radius"]
     rows = {r["label"]: r for r in skin_quality.measure(core, character, muscles, skin_quality.MAKEHUMAN_JOINTS)}
     scene = bpy.context.scene

@@ -14,8 +14,6 @@ namespace myoskin::python {
 
 namespace {
 
-using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-
 // #N by 3 float64 points, ValueError naming `name` on another shape.
 Points pointsOf(const DoubleArray& a, const char* name) {
   if (a.ndim() != 2 || a.shape(1) != 3)
@@ -178,7 +176,7 @@ void bindCorrectives(py::module_& m) {
       "compute_volume_keys",
       [](const Character& c, const py::array_t<double, py::array::c_style | py::array::forcecast>& share,
          const std::vector<double>& sampleDegrees, double maxOffset, double bandRadius, double minBlend,
-         const py::object& up) {
+         const py::object& up, const py::object& rig, const py::object& weightJoints, const py::object& weightValues) {
         if (!c.hasWeights()) throw InputError("compute_volume_keys: character '" + c.name + "' has no skin weights");
         if (share.ndim() != 1) throw InputError("share must be #V values");
         Eigen::VectorXd s(share.shape(0));
@@ -194,10 +192,16 @@ void bindCorrectives(py::module_& m) {
         VolumeKeyOptions ko;
         ko.sampleDegrees = sampleDegrees;
         ko.maxOffset = maxOffset;
+        if (rig.is_none() != weightJoints.is_none() || rig.is_none() != weightValues.is_none())
+          throw InputError("compute_volume_keys: rig, weight_joints and weight_values come together (Bind's skin)");
+        const PyMuscleRig* muscleRig = rig.is_none() ? nullptr : &rig.cast<const PyMuscleRig&>();
+        SkinWeights hybrid;
+        if (muscleRig)
+          hybrid = weightsArg(weightJoints.cast<IntArray>(), weightValues.cast<DoubleArray>(), c.mesh.numVertices());
         std::vector<VolumeKey> keys;
         {
           py::gil_scoped_release release;
-          keys = computeVolumeKeys(c.skeleton, c.weights, c.mesh, s, o, ko);
+          keys = computeVolumeKeys(c.skeleton, c.weights, c.mesh, s, o, ko, muscleRig, muscleRig ? &hybrid : nullptr);
         }
         py::list rows;
         for (const VolumeKey& k : keys) {
@@ -220,9 +224,12 @@ void bindCorrectives(py::module_& m) {
       py::arg("character"), py::arg("share"), py::kw_only(),
       py::arg("sample_degrees") = VolumeKeyOptions{}.sampleDegrees,
       py::arg("max_offset") = VolumeKeyOptions{}.maxOffset, py::arg("band_radius") = VolumeBlendOptions{}.bandRadius,
-      py::arg("min_blend") = VolumeBlendOptions{}.minBlend, py::arg("up") = py::none(),
+      py::arg("min_blend") = VolumeBlendOptions{}.minBlend, py::arg("up") = py::none(), py::arg("rig") = py::none(),
+      py::arg("weight_joints") = py::none(), py::arg("weight_values") = py::none(),
       "Volume keys of the volume blend (share: compute_dqs_share's #V shares): one dict per key of a limb joint whose "
-      "band still loses volume as it bends (bone, bone_index, vertices, offsets #n by 3 in rest space at weight 1, "
+      "band still loses volume as it bends; with rig and its hybrid weights (hybrid_weights' #V by K weight_joints "
+      "and weight_values) the bends are Bind's skin, the muscle joints included (bone, bone_index, vertices, offsets "
+      "#n by 3 in rest space at weight 1, "
       "k1, k2, swing (x, z) or (0, 0), axis; weight = clamp(s (k1 + k2 s) g, 0, 1), s = x^2 + z^2 of the bone's local "
       "rotation quaternion, g the directional factor of volume_blend.h; sample_degrees with the band's change_without "
       "and change_with the key).");

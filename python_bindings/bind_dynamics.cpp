@@ -15,9 +15,7 @@ namespace myoskin::python {
 
 namespace {
 
-using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
 using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
-using IntArray = py::array_t<int32_t, py::array::c_style | py::array::forcecast>;
 
 // #F by #B by 4 by 4 posed bone matrices -> a sequence starting at startFrame.
 PoseSequence sequenceArg(const DoubleArray& a, int numBones, double startFrame) {

@@ -13,8 +13,6 @@ namespace myoskin::python {
 
 namespace {
 
-using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-using IntArray = py::array_t<int32_t, py::array::c_style | py::array::forcecast>;
 
 // #V by K joints and weights (same shape) -> SkinWeights.
 SkinWeights combinedWeightsArg(const IntArray& joints, const DoubleArray& weights) {

@@ -14,8 +14,6 @@ namespace myoskin::python {
 
 namespace {
 
-using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
-using IntArray = py::array_t<int32_t, py::array::c_style | py::array::forcecast>;
 using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
 
 std::string shapeOf(const py::array& a) {
@@ -45,6 +43,8 @@ Triangles trianglesArg(const IntArray& a, const char* name, Eigen::Index numVert
   return t;
 }
 
+}  // namespace
+
 // #V by K joints + weights (the same shape; 1-D arrays are one influence per vertex).
 SkinWeights weightsArg(const IntArray& joints, const DoubleArray& weights, Eigen::Index numVertices) {
   auto cols = [](const py::array& a) { return a.ndim() == 1 ? py::ssize_t(1) : a.shape(1); };
@@ -64,6 +64,8 @@ SkinWeights weightsArg(const IntArray& joints, const DoubleArray& weights, Eigen
   std::copy(weights.data(), weights.data() + weights.size(), w.weights.data());
   return w;
 }
+
+namespace {
 
 // Skinner options from the Python arguments; rest_matrices (None or #J by 4 by 4) only with preserve_volume.
 // dqs_share (None or #V values in [0, 1]) the volume blend's per-vertex dual-quaternion shares; rest_matrices are

@@ -258,11 +258,11 @@ def add_volume_blend(skin, arm, share):
     return mod
 
 
-def add_volume_keys(core, character, combined, skins, arm, share):
-    """The volume keys of the combined character (compute_volume_keys on Bind's shares) as driven shape keys on each
-    mesh they reach (volume_keys.add_key; one key's #V by 3 offsets in memory at a time). Returns the number of shape
-    keys added."""
-    keys = core.compute_volume_keys(character, share)
+def add_volume_keys(core, character, combined, skins, arm, share, rig, joints, weights):
+    """The volume keys of the combined character (compute_volume_keys on Bind's skin: its shares, the muscle rig and
+    its hybrid weights) as driven shape keys on each mesh they reach (volume_keys.add_key; one key's #V by 3 offsets in
+    memory at a time). Returns the number of shape keys added."""
+    keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=joints, weight_values=weights)
     entries = {skin.name: [] for skin in skins}
     counts = {}
     for key in keys:
@@ -371,7 +371,7 @@ def bind(context, skins, arm):
     if volume_blend:  # the shares and the volume keys, split back per mesh
         for skin, mesh_share in zip(skins, combined.split(share)):
             add_volume_blend(skin, arm, np.asarray(mesh_share).ravel())
-        add_volume_keys(core, character, combined, skins, arm, share)
+        add_volume_keys(core, character, combined, skins, arm, share, rig, joints, weights)
     core_skin_was = {}
     if state.deformer == 'ANCHORED':  # the core moves these meshes (live.py); their Armature modifiers rest
         for skin in skins:

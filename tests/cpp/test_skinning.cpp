@@ -269,6 +269,19 @@ TEST(SkinQuality, SelfIntersectionsCountCrossingPairsNotNeighbours) {
   EXPECT_EQ(selfIntersections(v, t), 1);
   v.row(6) << 0.2, 0.8, 0;  // now it also reaches across the diagonal into (0 2 3)
   EXPECT_EQ(selfIntersections(v, t), 2);
+  // The pairs themselves, as rows of t (smaller first, sorted): the piercing triangle 2 with each half of the square.
+  const std::vector<std::pair<int, int>> pairs = selfIntersectingPairs(v, t);
+  EXPECT_EQ(pairs, (std::vector<std::pair<int, int>>{{0, 2}, {1, 2}}));
+  EXPECT_EQ(selfIntersectingPairs(v, t, {0, 1, 1, 1}), (std::vector<std::pair<int, int>>{{1, 2}}));  // rows kept
+  // One test made once, the points moved between calls (a fit's trials): the same answers as the one-shot calls.
+  SelfIntersectionTest test(t, v.rows());
+  EXPECT_EQ(test.pairs(v), pairs);
+  Points back = v;
+  back.row(6) << 0.9, 0.1, 0;  // through (0 1 2) only again
+  EXPECT_EQ(test.pairs(back), selfIntersectingPairs(back, t));
+  EXPECT_EQ(test.pairs(back).size(), 1u);
+  EXPECT_EQ(test.pairs(v), pairs);
+  EXPECT_NE(test::inputErrorOf([&] { test.pairs(v.topRows(9)); }).find("9 vertices"), std::string::npos);
   EXPECT_EQ(selfIntersections(v, t, {1, 1, 0, 1}), 0);  // masked out: tested only among the masked
   // A fold: the arm's skin with one end pushed through the rest counts crossings.
   Points folded = c.mesh.vertices;

@@ -11,6 +11,7 @@
 #include "test_support.h"
 #include "myoskin/character.h"
 #include "myoskin/correctives.h"
+#include "myoskin/deformation.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
 #include "myoskin/io.h"
@@ -548,6 +549,17 @@ TEST(VolumeKeys, BadInputIsRejected) {
   ko.sampleDegrees = {90.0};
   ko.maxOffset = 0.0;
   EXPECT_NE(message(share, ko).find("maxOffset"), std::string::npos);
+  // Bind's skin: the rig and its hybrid weights come together, the rig over this skeleton.
+  const MuscleRig rig(c.skeleton, {});
+  EXPECT_NE(inputErrorOf([&] { computeVolumeKeys(c.skeleton, c.weights, c.mesh, share, {}, {}, &rig, nullptr); })
+                .find("come together"),
+            std::string::npos);
+  Skeleton shorter = c.skeleton;
+  shorter.bones.pop_back();
+  const MuscleRig other(shorter, {});
+  EXPECT_NE(inputErrorOf([&] { computeVolumeKeys(c.skeleton, c.weights, c.mesh, share, {}, {}, &other, &c.weights); })
+                .find("bones"),
+            std::string::npos);
   VolumeKey key;
   key.bone = 99;
   Points out;

@@ -127,17 +127,20 @@ def _assert_joint_targets(rows, labels):
               f"{100 * r['myoskin_vb']:+.1f} %, + keys {100 * r['myoskin_vk']:+.1f} %; crossings LBS "
               f"{r['crossings_lbs']}, + keys {r['crossings_myoskin_vk']}")
         assert r["lbs"] < -0.1, label  # the joint really collapses under LBS (the measure can fail)
-        assert abs(r["myoskin_vk"]) <= 0.5 * abs(r["lbs"]), label
-        assert abs(r["myoskin_vk"]) <= abs(r["dqs"]) + 1e-3, label
-        assert r["crossings_myoskin_vk"] <= r["crossings_lbs"], label
+        assert meets_joint_target(r), label
         checked += 1
     assert checked == len(labels) > 0
 
 
+def meets_joint_target(r):
+    return (abs(r["myoskin_vk"]) <= 0.5 * abs(r["lbs"]) and abs(r["myoskin_vk"]) <= abs(r["dqs"]) + 1e-3
+            and r["crossings_myoskin_vk"] <= r["crossings_lbs"])
+
+
 def test_volume_keys_keep_makehumans_joints(makehuman):
     """MakeHuman: elbow and knee at 120 degrees, shoulder abduction 120, hip flexion 90 (the keys sample 45, 90 and
-    135 degrees). Measured: elbow -20.4 % (LBS -45.5), knee +5.4 % (-61.3), shoulder -17.9 % (-62.7; DQS -24.8), hip
-    +4.4 % (-24.1)."""
+    135 degrees, fitted on Bind's skin). Measured: elbow -10.4 % (LBS -45.5; crossings 31, LBS 61), knee -0.1 %
+    (-61.3; crossings 11, LBS 14), shoulder -17.9 % (-62.7; DQS -24.8), hip +4.4 % (-24.1)."""
     _assert_joint_targets(makehuman, ["elbow flexion", "knee flexion", "shoulder abduction", "hip flexion"])
 
 
@@ -147,9 +150,9 @@ def test_volume_keys_keep_makehumans_joints(makehuman):
     ("horse", "characters/quaternius_horse/horse.glb", ["front knee", "hind hock"]),
 ])
 def test_volume_keys_keep_the_joints_of_characters_nobody_here_made(core, name, path, joints):
-    """Quaternius' soldier (four meshes, x100) and horse (a quadruped, x100). Measured: soldier elbow +0.0 % (LBS
-    -49.0), knee +1.2 % (-30.8), shoulder abduction 60 degrees -3.8 % (-28.6), hip +1.3 % (-26.8); horse front knee
-    -16.7 % (-42.9), hind hock +1.4 % (-22.8)."""
+    """Quaternius' soldier (four meshes, x100) and horse (a quadruped, x100). Measured: soldier elbow -0.7 % (LBS
+    -49.0), knee +1.2 % (-30.8), shoulder abduction 60 degrees -6.5 % (-28.6), hip +1.3 % (-26.8); horse front knee
+    -8.4 % (-42.9), hind hock +1.4 % (-22.8)."""
     character = core.load_character(shared(path), require_weights=True)
     table = skin_quality.HORSE_JOINTS if name == "horse" else skin_quality.QUATERNIUS_JOINTS
     rows = rows_by_joint(core, character, table)
@@ -158,14 +161,25 @@ def test_volume_keys_keep_the_joints_of_characters_nobody_here_made(core, name, 
         assert rows["hind hock"]["myoskin_vk"] > -0.02
 
 
-def test_volume_keys_keep_a_held_out_generated_biped_s_joints(core):
-    """Issue 14 item 3 on a generated biped nothing was tuned on (seed 26; bipeds 20-27 are the held-out seeds):
-    elbow and knee 120, shoulder abduction 90 degrees. Measured: elbow +1.9 % (LBS -25.5, DQS -2.0), knee -0.6 %
-    (-46.3, -0.6), shoulder -18.7 % (-42.5, -19.0). Its hip lies deeper inside the pelvis than 1.5 body limb radii
-    from any skin: the band measure has nothing to measure there (skin_quality.measure skips it)."""
-    character, _truth = core.make_synthetic_body(seed=26)
-    rows = rows_by_joint(core, character, skin_quality.SYNTHETIC_BODY_JOINTS, facing=(0.0, -1.0, 0.0))
-    _assert_joint_targets(rows, ["elbow flexion", "knee flexion", "shoulder abduction"])
+def test_volume_keys_keep_held_out_generated_bipeds_joints(core):
+    """Issue 14 item 3 on the generated bipeds nothing was tuned on (seeds 20-27): elbow and knee 120, shoulder
+    abduction 90 degrees (their hips lie deeper inside the pelvis than 1.5 body limb radii from any skin: the band
+    measure has nothing to measure there). Measured: 17 of the 24 joints meet the target (13 with keys fitted on the
+    skeleton's blend alone); every joint of bipeds 20, 21 and 26 does (21's shoulder -24.0 %, LBS -51.1, DQS -27.8).
+    The misses: the shoulders of 23 and 25 (every side crosses the arm into the torso, or the blend alone folds more
+    than LBS), and elbows and knees a point or two from rest where DQS keeps closer still or the blend alone folds
+    more than LBS (22, 24, 25, 27)."""
+    met, per_seed = 0, {}
+    for seed in range(20, 28):
+        character, _truth = core.make_synthetic_body(seed=seed)
+        rows = rows_by_joint(core, character, skin_quality.SYNTHETIC_BODY_JOINTS, facing=(0.0, -1.0, 0.0))
+        joints = [rows[label] for label in ("elbow flexion", "knee flexion", "shoulder abduction")]
+        per_seed[seed] = sum(meets_joint_target(r) for r in joints)
+        met += per_seed[seed]
+    print(f"held-out bipeds: {met} of 24 joints meet the target; per seed {per_seed}")
+    assert len(per_seed) == 8
+    assert met >= 16
+    assert per_seed[20] == per_seed[21] == per_seed[26] == 3
 
 
 @pytest.mark.parametrize("seed", [26, 27])

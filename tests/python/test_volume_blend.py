@@ -80,6 +80,9 @@ def test_bad_shares_and_options_are_value_errors(core):
         core.compute_dqs_share(character, keep_tolerance=2.0)
     with pytest.raises(ValueError, match="up must be"):
         core.compute_dqs_share(character, up=(0.0, 0.0, 0.0))
+    rig = core.MuscleRig(character, [])
+    with pytest.raises(ValueError, match="come together"):  # Bind's skin: the rig with its hybrid weights
+        core.compute_volume_keys(character, np.full(n, 0.5), rig=rig)
 
 
 def test_cli_deform_volume_blend_matches_the_module(core, tmp_path):
@@ -99,7 +102,7 @@ def test_cli_deform_volume_blend_matches_the_module(core, tmp_path):
     t = core.skinning_transforms(character, pose, rig, rig.evaluate(pose)["joint_matrices"])
     rest = core.combined_rest_matrices(character, rig)
     share = core.compute_dqs_share(character)
-    keys = core.compute_volume_keys(character, share)  # the arm's elbow keeps its volume well: maybe none
+    keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=joints, weight_values=weights)  # maybe none
     assert f"volume blend with {len(keys)} volume keys" in r.stdout
     keyed = skin_quality.with_volume_keys(core, character, character.vertices, keys, pose)
     expected = core.skin(keyed, joints, weights, t, dqs_share=share, rest_matrices=rest)

@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "myoskin/deformation.h"
@@ -227,6 +228,26 @@ Eigen::VectorXd localBulge(const Points& rest, const Triangles& triangles, const
 // among the triangles with faceMask[f] != 0 (#F; empty = all). Throws InputError on non-finite vertices, bad
 // indices or a mask of the wrong size.
 int selfIntersections(const Points& vertices, const Triangles& triangles, const std::vector<char>& faceMask = {});
+
+// The intersecting pairs themselves: rows of `triangles`, (smaller, larger), sorted. Throws as selfIntersections.
+std::vector<std::pair<int, int>> selfIntersectingPairs(const Points& vertices, const Triangles& triangles,
+                                                       const std::vector<char>& faceMask = {});
+
+// The same test of one triangle set at many vertex positions (a fit's trials): the mesh is built once, each call
+// only moves its points. pairs() gives selfIntersectingPairs' answer; it throws InputError on non-finite vertices or
+// another vertex count than the test was made for, the constructor as selfIntersections on bad indices or mask.
+class SelfIntersectionTest {
+ public:
+  SelfIntersectionTest(const Triangles& triangles, Eigen::Index numVertices, const std::vector<char>& faceMask = {});
+  ~SelfIntersectionTest();
+  SelfIntersectionTest(const SelfIntersectionTest&) = delete;
+  SelfIntersectionTest& operator=(const SelfIntersectionTest&) = delete;
+  std::vector<std::pair<int, int>> pairs(const Points& vertices);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 // ============================================================================
 // Point caches (PC2, Blender's Mesh Cache modifier)

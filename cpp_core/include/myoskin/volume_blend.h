@@ -17,6 +17,10 @@
 #include "myoskin/types.h"
 
 namespace myoskin {
+class MuscleRig;  // deformation.h
+}
+
+namespace myoskin {
 
 // ============================================================================
 // Options and per-joint report
@@ -127,13 +131,18 @@ struct VolumeKeyOptions {
 // no more self-intersecting triangle pairs than without the key; the weight's fit is checked the same way every 30
 // degrees. The profile swells the outer side, the skin all round or the crease's side, whichever leaves the least sum
 // of |band volume change| over the samples (the three fitted in parallel on TBB's threads; the choice does not depend
-// on them). Deterministic. Throws InputError on what
+// on them). With `rig` and its `hybridWeights` (computeHybridWeights: #V rows over the bones, then the rig's joints)
+// the bends are Bind's skin, the muscle joints included (combinedRestMatrices, the share): the keys give back only
+// the volume the muscles leave lost. Skin that touches other skin under the push (the back of the knee, under the
+// armpit) stays still, the profile faded back over half a limb radius; a key is kept only when it lowers the band's
+// largest |change| over the samples. Deterministic. Throws InputError on what
 // computeDqsShare refuses, a share of the wrong size or outside [0, 1], no samples or a sample outside (0, 180], or
 // maxOffset <= 0.
 std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWeights& skeletonWeights,
                                          const Mesh& skin, const Eigen::VectorXd& share,
                                          const VolumeBlendOptions& options = {},
-                                         const VolumeKeyOptions& keyOptions = {});
+                                         const VolumeKeyOptions& keyOptions = {}, const MuscleRig* rig = nullptr,
+                                         const SkinWeights* hybridWeights = nullptr);
 
 // The key's weight for its bone's local rotation (boneLocalRotation in correctives.h; any norm).
 double volumeKeyWeight(const VolumeKey& key, const Eigen::Quaterniond& localRotation);

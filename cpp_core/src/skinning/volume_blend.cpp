@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <map>
+#include <memory>
 #include <string>
 
 #include <Eigen/Geometry>
@@ -14,6 +16,8 @@
 #include <tbb/parallel_for.h>
 
 #include "myoskin/character.h"
+#include "myoskin/deformation.h"
+#include "myoskin/skin_weights.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
 #include "myoskin/sections.h"
@@ -27,6 +31,8 @@ constexpr int kShareSteps = 100;  // shares tried: 0, 1/100, ..., 1
 constexpr double kLeanFloor = 1e-12;  // volumeKeyWeight: a lean this small is the rest pose (Blender's driver too)
 constexpr double kRounding = 1e-9;  // band changes this small are rounding (a band no bend changes keeps share 1)
 constexpr double kVisibleOffset = 0.01;  // volume keys: the smallest offset kept, in limb radii
+constexpr double kContactFade = 0.5;     // volume keys: the profile's fade around skin held at a contact, limb radii
+constexpr int kContactRounds = 8;        // volume keys: contact rounds per sample flexion
 
 // ============================================================================
 // Checks
@@ -405,23 +411,61 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
 
 namespace {
 
-// A band's bends about one swing axis, shared by the fits of its profile sides: per flexion the vertices' linear and
-// dual-quaternion maps and the self-intersecting pairs under the blend alone (-1 until counted).
+// A band's bends about one swing axis, shared by the fits of its profile sides and contact modes: per flexion the
+// vertices' affine maps (the skeleton's blend, or Bind's skin with the muscle joints) and the self-intersecting pairs
+// under them alone (found once).
 struct BendCache {
   struct Bend {
-    VertexTransforms linear, dualQuat;
-    int folds = -1;
+    VertexTransforms maps;  // per band vertex the skin's affine map at this bend
+    bool counted = false;
+    std::vector<std::pair<int, int>> folds;  // self-intersecting band triangle pairs under the blend alone (sorted)
   };
   std::map<double, Bend> bends;
+  std::unique_ptr<SelfIntersectionTest> crossings;  // the band's self-intersection test, made once
 };
+
+// Bind's skin, when the keys are fitted on it: the muscle rig's joints with their hybrid weights (#V rows over the
+// skeleton's bones and then the rig's joints) and the combined joints' rest matrices.
+struct MuscleSkin {
+  const MuscleRig* rig = nullptr;
+  const SkinWeights* weights = nullptr;
+  std::vector<Mat4> rest;
+};
+
+// Per band vertex the blended affine map of Bind's skin at a skeleton bend (transforms: turnedSubtree's).
+void muscleBandMaps(const Skeleton& skeleton, const Band& band, const MuscleSkin& muscles, const Eigen::VectorXd& share,
+                    const std::vector<Mat4>& transforms, VertexTransforms& out) {
+  Pose pose;
+  for (int b = 0; b < skeleton.numBones(); ++b) pose.matrices.push_back(transforms[b] * skeleton.bones[b].rest);
+  MuscleRigState state = muscles.rig->makeState();
+  muscles.rig->evaluate(pose, state);
+  std::vector<Mat4> all;
+  skinningTransforms(skeleton, pose, *muscles.rig, state, all);
+  const int n = static_cast<int>(band.ids.size());
+  SkinWeights w;
+  w.joints.resize(n, muscles.weights->influences());
+  w.weights.resize(n, muscles.weights->influences());
+  SkinnerOptions options;
+  options.threads = 1;
+  options.jointRest = muscles.rest;
+  for (int i = 0; i < n; ++i) {
+    w.joints.row(i) = muscles.weights->joints.row(band.ids[i]);
+    w.weights.row(i) = muscles.weights->weights.row(band.ids[i]);
+    options.dqsShare.push_back(share[band.ids[i]]);
+  }
+  Skinner(band.rest, w, static_cast<int>(all.size()), options).vertexTransforms(all, out);
+}
 
 // One joint's key for swings about `axis` (unit; `directional`: the key acts only on swings toward that side): the
 // offsets' profile and, per sample flexion, the amplitude that keeps the band's volume; then the weight's fit. False
-// when the band keeps its volume at every sample (no key).
+// when the band keeps its volume at every sample (no key). `holdAll`: every contact under the push is held, else only
+// the contacts the push makes (the blend's own folds may be pushed apart). `folds`: the band's self-intersecting
+// triangle pairs with the key, summed over the samples; `held`: whether any skin was held.
 bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<double>& bandBlend,
                   const Points& normals, const Eigen::VectorXd& share, const VolumeBlendOptions& o,
                   const VolumeKeyOptions& ko, const RealJoint& joint, const Vec3& axis, bool directional,
-                  double limbRadius, double sideSign, BendCache& cache, VolumeKey& key) {
+                  double limbRadius, double sideSign, bool holdAll, const MuscleSkin& muscles, BendCache& cache,
+                  VolumeKey& key, int& folds, bool& held) {
   const Vec3 head = skeleton.bones[joint.bone].head;
   const double reach = o.bandRadius * limbRadius;
   const double v0 = coneVolume(band.rest, band.triangles, head);
@@ -444,24 +488,48 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   // (each vertex's blended affine map is linear in its input).
   auto bent = [&](double degrees, Points& base, Points& moved) -> BendCache::Bend& {
     BendCache::Bend& bend = cache.bends[degrees];
-    if (bend.linear.rows() == 0)
-      bandMaps(skeleton, band, turnedSubtree(skeleton, joint, degrees, axis), bend.linear, bend.dualQuat);
-    const VertexTransforms &linearMaps = bend.linear, &dqMaps = bend.dualQuat;
+    if (bend.maps.rows() == 0) {
+      const std::vector<Mat4> turned = turnedSubtree(skeleton, joint, degrees, axis);
+      if (muscles.rig) {
+        muscleBandMaps(skeleton, band, muscles, share, turned, bend.maps);
+      } else {
+        VertexTransforms linearMaps, dqMaps;
+        bandMaps(skeleton, band, turned, linearMaps, dqMaps);
+        bend.maps.resize(n, 12);
+        for (int i = 0; i < n; ++i) {
+          const double s = share[band.ids[i]];
+          for (int c = 0; c < 12; ++c) bend.maps(i, c) = (1.0 - s) * linearMaps(i, c) + s * dqMaps(i, c);
+        }
+      }
+    }
     base.resize(n, 3);
     moved.resize(n, 3);
     for (int i = 0; i < n; ++i) {
-      const double s = share[band.ids[i]];
       Eigen::Matrix<double, 3, 4> m;
       for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 4; ++c) m(r, c) = (1.0 - s) * linearMaps(i, 4 * r + c) + s * dqMaps(i, 4 * r + c);
+        for (int c = 0; c < 4; ++c) m(r, c) = bend.maps(i, 4 * r + c);
       base.row(i) = (m.leftCols<3>() * band.rest.row(i).transpose() + m.col(3)).transpose();
       moved.row(i) = (m.leftCols<3>() * profile.row(i).transpose()).transpose();
     }
     return bend;
   };
-  auto folds = [&](BendCache::Bend& bend, const Points& base) {  // under the blend alone, counted once
-    if (bend.folds < 0) bend.folds = selfIntersections(base, band.triangles);
-    return bend.folds;
+  if (!cache.crossings) cache.crossings = std::make_unique<SelfIntersectionTest>(band.triangles, band.rest.rows());
+  auto pairsOf = [&](const Points& p) { return cache.crossings->pairs(p); };
+  auto foldPairs = [&](BendCache::Bend& bend, const Points& base) -> const std::vector<std::pair<int, int>>& {
+    if (!bend.counted) bend.folds = pairsOf(base), bend.counted = true;
+    return bend.folds;  // under the blend alone, found once
+  };
+  auto crosses = [&](BendCache::Bend& bend, const Points& base, const Points& with) {  // more folds than the blend
+    return pairsOf(with).size() > foldPairs(bend, base).size();
+  };
+  // The contacts to hold under a push: all of them, or those the blend alone does not have.
+  auto contacts = [&](BendCache::Bend& bend, const Points& base, const Points& with) {
+    std::vector<std::pair<int, int>> pairs = pairsOf(with);
+    if (holdAll) return pairs;
+    const std::vector<std::pair<int, int>>& alone = foldPairs(bend, base);
+    std::vector<std::pair<int, int>> made;
+    std::set_difference(pairs.begin(), pairs.end(), alone.begin(), alone.end(), std::back_inserter(made));
+    return made;
   };
   auto change = [&](const Points& p) { return (coneVolume(p, band.triangles, head) - v0) / std::abs(v0); };
   const double amax = ko.maxOffset;
@@ -472,22 +540,55 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   double reachOut = 0.0;
   for (int i = 0; i < n; ++i) reachOut = std::max(reachOut, profile.row(i).norm());
   const double smallest = kVisibleOffset * limbRadius / std::max(reachOut, 1e-300);
+  // The amplitude that keeps the band's volume at a bend (at most amax), 0 when pushing out gives none back.
+  auto restoring = [&](const Points& base, const Points& moved) {
+    const double before = change(base), most = change(base + amax * moved);
+    if (!(before < 0.0 && most > before)) return 0.0;
+    if (most <= 0.0) return amax;
+    double lo = 0.0, hi = amax;
+    for (int it = 0; it < 40; ++it) (change(base + 0.5 * (lo + hi) * moved) < 0.0 ? lo : hi) = 0.5 * (lo + hi);
+    return hi;
+  };
+  // Contacts: skin that touches other skin under the push (the back of the knee against the calf, an arm against the
+  // torso under the armpit) stays still, and the free skin gives the volume back. At each sample the restoring
+  // amplitude is tried; the vertices of every triangle pair that intersects with it are held, the profile faded back
+  // to full over kContactFade limb radii around them, until no new vertex is held.
+  const Points free = profile;
+  std::vector<char> isHeld(static_cast<size_t>(n), 0);
+  std::vector<int> heldIds;
+  held = false;
+  for (double degrees : ko.sampleDegrees) {
+    for (int round = 0; round < kContactRounds; ++round) {
+      BendCache::Bend& bend = bent(degrees, base, moved);
+      const double a = restoring(base, moved);
+      if (!(a > smallest)) break;
+      const size_t before = heldIds.size();
+      for (const auto& [f, g] : contacts(bend, base, Points(base + a * moved)))
+        for (int t : {f, g})
+          for (int c = 0; c < 3; ++c) {
+            const int i = band.triangles(t, c);
+            if (!isHeld[static_cast<size_t>(i)] && free.row(i).squaredNorm() > 0.0)
+              isHeld[static_cast<size_t>(i)] = 1, heldIds.push_back(i);
+          }
+      if (heldIds.size() == before) break;
+      held = true;
+      const double fade = kContactFade * limbRadius;
+      for (int i = 0; i < n; ++i) {
+        double d2 = std::numeric_limits<double>::infinity();
+        for (int h : heldIds) d2 = std::min(d2, (band.rest.row(i) - band.rest.row(h)).squaredNorm());
+        const double u = std::min(1.0, std::sqrt(d2) / fade);
+        profile.row(i) = (u * u * (3.0 - 2.0 * u)) * free.row(i);
+      }
+    }
+  }
   for (double degrees : ko.sampleDegrees) {
     BendCache::Bend& bend = bent(degrees, base, moved);
     const double before = change(base);
-    double a = 0.0;
-    const double most = change(base + amax * moved);
-    if (before < 0.0 && most > before) {  // the profile pushed out does give volume back
-      if (most <= 0.0) {
-        a = amax;
-      } else {
-        double lo = 0.0, hi = amax;
-        for (int it = 0; it < 40; ++it) (change(base + 0.5 * (lo + hi) * moved) < 0.0 ? lo : hi) = 0.5 * (lo + hi);
-        a = hi;
-      }
+    double a = restoring(base, moved);
+    if (a > 0.0) {  // the profile pushed out does give volume back
       // No more folding than the blend alone at this flexion: the amplitude halves until it does not; an amplitude
       // under the visible offset (halved there or small from the start) is none.
-      while (a > smallest && selfIntersections(Points(base + a * moved), band.triangles) > folds(bend, base)) a *= 0.5;
+      while (a > smallest && crosses(bend, base, Points(base + a * moved))) a *= 0.5;
       if (!(a > smallest)) a = 0.0;
     }
     const double half = std::sin(0.5 * degrees * kPi / 180.0);
@@ -539,9 +640,7 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   for (double degrees : checked) {
     if (!(peak > smallest)) break;
     BendCache::Bend& bend = bent(degrees, base, moved);
-    while (peak > smallest &&
-           selfIntersections(Points(base + weightAt(degrees) * peak * moved), band.triangles) > folds(bend, base))
-      peak *= 0.5;
+    while (peak > smallest && crosses(bend, base, Points(base + weightAt(degrees) * peak * moved))) peak *= 0.5;
   }
   if (!(peak > smallest)) return false;
   key.bone = joint.bone;
@@ -562,9 +661,12 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     key.vertices.push_back(band.ids[rows[i]]);
     key.offsets.row(static_cast<Eigen::Index>(i)) = peak * profile.row(rows[i]);
   }
+  folds = 0;
   for (double degrees : key.sampleDegrees) {
     bent(degrees, base, moved);
-    key.changeWith.push_back(change(base + weightAt(degrees) * peak * moved));
+    const Points with = base + weightAt(degrees) * peak * moved;
+    key.changeWith.push_back(change(with));
+    folds += static_cast<int>(pairsOf(with).size());
   }
   return true;
 }
@@ -573,8 +675,19 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
 
 std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWeights& w, const Mesh& skin,
                                          const Eigen::VectorXd& share, const VolumeBlendOptions& options,
-                                         const VolumeKeyOptions& keyOptions) {
+                                         const VolumeKeyOptions& keyOptions, const MuscleRig* rig,
+                                         const SkinWeights* hybridWeights) {
   validate(skeleton, w, skin, options);
+  MuscleSkin muscles;
+  if ((rig == nullptr) != (hybridWeights == nullptr))
+    throw InputError("volume keys: the muscle rig and its hybrid weights come together");
+  if (rig) {
+    if (rig->skeleton().numBones() != skeleton.numBones())
+      throw InputError("volume keys: the muscle rig has " + std::to_string(rig->skeleton().numBones()) +
+                       " bones, the skeleton " + std::to_string(skeleton.numBones()));
+    validateSkinWeights(*hybridWeights, skin.numVertices(), skeleton.numBones() + rig->numJoints());
+    muscles = MuscleSkin{rig, hybridWeights, combinedRestMatrices(skeleton, *rig)};
+  }
   if (share.size() != skin.numVertices())
     throw InputError("volume keys: " + std::to_string(share.size()) + " shares for " +
                      std::to_string(skin.numVertices()) + " vertices");
@@ -599,7 +712,10 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
     size_t band;
     Vec3 axis;
     double sideSign;
+    bool holdAll;
     bool ok = false;
+    int folds = 0;
+    bool held = false;
     VolumeKey key;
   };
   constexpr double kSides[] = {1.0, 0.0, -1.0};
@@ -626,20 +742,23 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
     bands.push_back(std::move(jb));
     for (int quarter = 0; quarter < (joint.limbRoot ? 4 : 1); ++quarter)
       for (double sideSign : kSides)
-        fits.push_back(
-            Fit{bands.size() - 1, Eigen::AngleAxisd(0.5 * kPi * quarter, boneY) * flexion, sideSign, false, {}});
+        for (bool holdAll : {true, false})
+          fits.push_back(Fit{bands.size() - 1, Eigen::AngleAxisd(0.5 * kPi * quarter, boneY) * flexion, sideSign,
+                             holdAll, false, 0, false, {}});
   }
   // In parallel per swing axis; its sides in turn, sharing the band's bends.
-  constexpr size_t kNumSides = sizeof(kSides) / sizeof(kSides[0]);
+  constexpr size_t kNumSides = 2 * sizeof(kSides) / sizeof(kSides[0]);  // profile sides times contact modes
   const tbb::blocked_range<size_t> axes(0, fits.size() / kNumSides, 1);
   tbb::parallel_for(axes, [&](const tbb::blocked_range<size_t>& r) {
     for (size_t g = r.begin(); g != r.end(); ++g) {
       BendCache cache;
       for (size_t f = g * kNumSides; f < (g + 1) * kNumSides; ++f) {
+        // A side whose fit holding every contact held none: holding only new contacts gives the same key.
+        if (!fits[f].holdAll && !fits[f - 1].held) continue;
         const JointBand& jb = bands[fits[f].band];
         fits[f].ok = fitVolumeKey(skeleton, jb.band, jb.blend, normals, share, options, keyOptions, *jb.joint,
-                                  fits[f].axis, jb.joint->limbRoot, scan.limbRadius, fits[f].sideSign, cache,
-                                  fits[f].key);
+                                  fits[f].axis, jb.joint->limbRoot, scan.limbRadius, fits[f].sideSign,
+                                  fits[f].holdAll, muscles, cache, fits[f].key, fits[f].folds, fits[f].held);
       }
     }
   });
@@ -653,10 +772,18 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
       if (!fits[f].ok) continue;
       double loss = 0.0;
       for (double c : fits[f].key.changeWith) loss += std::abs(c);
-      if (loss < bestLoss) {
+      if (!best || fits[f].folds < best->folds || (fits[f].folds == best->folds && loss < bestLoss)) {
         bestLoss = loss;
         best = &fits[f];
       }
+    }
+    // Kept only when it lowers the band's largest change over the samples (a key that trades a loss at one flexion
+    // for a gain past rest at another is none).
+    if (best) {
+      double before = 0.0, after = 0.0;
+      for (double c : best->key.changeWithout) before = std::max(before, std::abs(c));
+      for (double c : best->key.changeWith) after = std::max(after, std::abs(c));
+      if (!(after < before)) best = nullptr;
     }
     if (best) keys.push_back(std::move(best->key));
   }
