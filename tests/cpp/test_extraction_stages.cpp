@@ -45,7 +45,7 @@ TEST(Stages, EachStageAloneGivesTheOneShotResult) {
     EXPECT_GT(scale.meanEdgeLength, 0.0);
     EXPECT_LT(scale.meanEdgeLength, scale.limbRadius * scale.factor);  // the limb is resolved by its mesh
     EXPECT_EQ(scale.evidenceScale(), 1.0);                              // automatic spacing
-    const stages::SectionCut cut = stages::cutBodySections(surface.body, scale, o.roleOverrides, o.planes, o.profiles,
+    const stages::SectionCut cut = stages::cutBodySections(surface.body, scale, surface.roles, o.planes, o.profiles,
                                                            surface.vertexMask, rep);
     EXPECT_EQ(rep.planes, shot.report.planes);
     EXPECT_EQ(cut.profiles.size(), cut.planes.size());

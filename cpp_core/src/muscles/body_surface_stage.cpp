@@ -1,10 +1,10 @@
 // Stage 0 of the extraction: the body surface (small and rigidly bound skin components left out, vertices
-// renumbered, masks remapped) and its scale context (units from the limb radius, spacing, mean edge length).
+// renumbered, masks remapped), its bone roles and its scale context (units from the limb radius, spacing, mean edge
+// length).
 #include <cmath>
 
 #include "muscles/extraction_stages.h"
 #include "myoskin/secondary_motion.h"  // meanEdgeLength
-#include "myoskin/errors.h"
 
 namespace myoskin::stages {
 
@@ -12,12 +12,10 @@ namespace myoskin::stages {
 // Scale context
 // ============================================================================
 
-ScaleContext makeScaleContext(const Character& body, const std::map<std::string, BoneRole>& roleOverrides,
+ScaleContext makeScaleContext(const Character& body, const std::vector<BoneRole>& roles,
                               const BodyScaleOptions& options, double spacing) {
-  if (!std::isfinite(options.referenceLimbRadius)) throw InputError("referenceLimbRadius must be finite");
   // The character's units are found from its limb radius (the power of ten that brings it nearest the reference).
   ScaleContext s;
-  const std::vector<BoneRole> roles = characterBoneRoles(body, roleOverrides);
   s.limbRadius = bodyLimbRadius(body, roles);
   const double reference = options.referenceLimbRadius == 0 ? kReferenceLimbRadius : options.referenceLimbRadius;
   s.factor = reference > 0 && s.limbRadius > 0 ? std::pow(10.0, std::round(std::log10(reference / s.limbRadius))) : 1.0;
@@ -78,7 +76,9 @@ BodySurface makeBodySurface(const Character& character, const ExtractionOptions&
 
   // The body scale: the character is scaled about the origin into its units, so mm, cm, m and x100 exports give the
   // same muscles.
-  out.scale = makeScaleContext(body, options.roleOverrides, options.scale, options.planes.spacing);
+  // Roles come from the bone tree and the skin's shape relative to the body, so they do not change with the units.
+  out.roles = characterBoneRoles(body, options.roleOverrides);
+  out.scale = makeScaleContext(body, out.roles, options.scale, options.planes.spacing);
   const double factor = out.scale.factor;
   auto toBody = [&](const Vec3& p) { return Vec3(p * factor); };
   for (int v = 0; v < count; ++v) body.mesh.vertices.row(v) = toBody(body.mesh.vertices.row(v).transpose()).transpose();

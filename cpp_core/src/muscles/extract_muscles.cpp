@@ -114,7 +114,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
   ExtractionReport& rep = result.report;
 
   // Stages 1-2: roles, planes, profiles (timings "planes" and "sections").
-  const stages::SectionCut cut = stages::cutBodySections(body, scale, options.roleOverrides, options.planes,
+  const stages::SectionCut cut = stages::cutBodySections(body, scale, surface.roles, options.planes,
                                                          options.profiles, surface.vertexMask, rep);
   // Stages 3-4: CDT, bumps, ellipses per section.
   auto t0 = Clock::now();

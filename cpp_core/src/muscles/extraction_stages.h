@@ -34,16 +34,19 @@ struct BodySurface {
   std::vector<char> vertexMask;                 // #B, empty = whole skin
   std::vector<std::vector<char>> forcedRegions; // one #B mask per forced region
   std::vector<ExcludedComponent> excluded;      // components left out
+  std::vector<BoneRole> roles;                  // #bones: characterBoneRoles with the options' overrides, found once
   ScaleContext scale;
 };
 
-// Validates the inputs (sizes of the masks, finite reference) and builds the body surface and its scale context.
+// The body surface, its bone roles and its scale context. The options are extractMuscles' after its checks
+// (validateExtraction: mask sizes, a finite referenceLimbRadius, ranges).
 BodySurface makeBodySurface(const Character& character, const ExtractionOptions& options);
 
-// The scale context of a body in the character's units (before scaling): its limb radius, the units factor, and the
-// plane spacing from options.spacing (limb radii) or, when that is 0, from `spacing` (PlaneOptions::spacing, the
-// character's units; 0 = automatic). defaultSpacing and meanEdgeLength are filled by makeBodySurface.
-ScaleContext makeScaleContext(const Character& body, const std::map<std::string, BoneRole>& roleOverrides,
+// The scale context of a body in the character's units (before scaling): its limb radius (over the limbs of `roles`),
+// the units factor, and the plane spacing from options.spacing (limb radii) or, when that is 0, from `spacing`
+// (PlaneOptions::spacing, the character's units; 0 = automatic). defaultSpacing and meanEdgeLength are filled by
+// makeBodySurface.
+ScaleContext makeScaleContext(const Character& body, const std::vector<BoneRole>& roles,
                               const BodyScaleOptions& options, double spacing);
 
 // ============================================================================
@@ -56,11 +59,11 @@ struct SectionCut {
   std::vector<SectionProfile> profiles;  // one per plane
 };
 
-// Bone roles, the cutting planes (spacing from the scale context) and a profile per plane. Fills rep.bones,
-// activeBones, planes and the timings "planes" and "sections".
-SectionCut cutBodySections(const Character& body, const ScaleContext& scale,
-                           const std::map<std::string, BoneRole>& roleOverrides, const PlaneOptions& planes,
-                           const ProfileOptions& profiles, const std::vector<char>& vertexMask, ExtractionReport& rep);
+// The cutting planes over the bones of `roles` (BodySurface::roles; spacing from the scale context) and a profile per
+// plane. Fills rep.bones, activeBones, planes and the timings "planes" and "sections".
+SectionCut cutBodySections(const Character& body, const ScaleContext& scale, const std::vector<BoneRole>& roles,
+                           const PlaneOptions& planes, const ProfileOptions& profiles,
+                           const std::vector<char>& vertexMask, ExtractionReport& rep);
 
 // ============================================================================
 // Stages 3-4: triangulation, bumps and ellipses per section

@@ -1,18 +1,19 @@
-// Stages 1-2 of the extraction: bone roles, cutting planes (spacing from the scale context), a profile per plane.
+// Stages 1-2 of the extraction: cutting planes over the bone roles of stage 0 (spacing from the scale context),
+// a profile per plane.
 #include "muscles/extraction_stages.h"
 
 namespace myoskin::stages {
 
 // ============================================================================
-// Roles, planes, profiles
+// Planes, profiles
 // ============================================================================
 
-SectionCut cutBodySections(const Character& character, const ScaleContext& scale,
-                           const std::map<std::string, BoneRole>& roleOverrides, const PlaneOptions& planeOptions,
-                           const ProfileOptions& profiles, const std::vector<char>& vertexMask, ExtractionReport& rep) {
+SectionCut cutBodySections(const Character& character, const ScaleContext& scale, const std::vector<BoneRole>& roles,
+                           const PlaneOptions& planeOptions, const ProfileOptions& profiles,
+                           const std::vector<char>& vertexMask, ExtractionReport& rep) {
   auto t0 = std::chrono::steady_clock::now();
   SectionCut cut;
-  cut.roles = characterBoneRoles(character, roleOverrides);
+  cut.roles = roles;
   rep.bones = character.skeleton.numBones();
   for (BoneRole r : cut.roles) rep.activeBones += r != BoneRole::Ignore;
   PlaneOptions planes = planeOptions;
