@@ -416,8 +416,11 @@ BoundSkin bindFromArgs(const Args& args, const std::string& command, const std::
   if (volumeBlend) {  // shares from the skeleton weights; the joints' rest frames shape the dual-quaternion part
     const Eigen::VectorXd share = computeDqsShare(c.skeleton, c.weights, c.mesh);
     b.options.dqsShare.assign(share.data(), share.data() + share.size());
-    b.volumeKeys = b.rig ? computeVolumeKeys(c.skeleton, c.weights, c.mesh, share, {}, {}, b.rig.get(), &b.weights)
-                         : computeVolumeKeys(c.skeleton, c.weights, c.mesh, share);
+    VolumeKeyOptions keyOptions;
+    keyOptions.dualQuatScale = b.options.dualQuatScale;  // --dq-scale: the muscle joints' scale as the skin carries it
+    b.volumeKeys = b.rig
+                       ? computeVolumeKeys(c.skeleton, c.weights, c.mesh, share, {}, keyOptions, b.rig.get(), &b.weights)
+                       : computeVolumeKeys(c.skeleton, c.weights, c.mesh, share, {}, keyOptions);
   }
   if (b.options.preserveVolume || volumeBlend) {
     if (b.rig) {

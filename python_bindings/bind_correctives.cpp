@@ -174,9 +174,9 @@ void bindCorrectives(py::module_& m) {
   // ==========================================================================
   m.def(
       "compute_volume_keys",
-      [](const Character& c, const py::array_t<double, py::array::c_style | py::array::forcecast>& share,
-         const std::vector<double>& sampleDegrees, double maxOffset, double bandRadius, double minBlend,
-         const py::object& up, const py::object& rig, const py::object& weightJoints, const py::object& weightValues) {
+      [](const Character& c, const DoubleArray& share, const std::vector<double>& sampleDegrees, double maxOffset,
+         double bandRadius, double minBlend, const py::object& up, const py::object& rig,
+         const py::object& weightJoints, const py::object& weightValues, const std::string& dqScale) {
         if (!c.hasWeights()) throw InputError("compute_volume_keys: character '" + c.name + "' has no skin weights");
         if (share.ndim() != 1) throw InputError("share must be #V values");
         Eigen::VectorXd s(share.shape(0));
@@ -192,6 +192,7 @@ void bindCorrectives(py::module_& m) {
         VolumeKeyOptions ko;
         ko.sampleDegrees = sampleDegrees;
         ko.maxOffset = maxOffset;
+        ko.dualQuatScale = dualQuatScaleArg(dqScale);
         if (rig.is_none() != weightJoints.is_none() || rig.is_none() != weightValues.is_none())
           throw InputError("compute_volume_keys: rig, weight_joints and weight_values come together (Bind's skin)");
         const PyMuscleRig* muscleRig = rig.is_none() ? nullptr : &rig.cast<const PyMuscleRig&>();
@@ -225,14 +226,14 @@ void bindCorrectives(py::module_& m) {
       py::arg("sample_degrees") = VolumeKeyOptions{}.sampleDegrees,
       py::arg("max_offset") = VolumeKeyOptions{}.maxOffset, py::arg("band_radius") = VolumeBlendOptions{}.bandRadius,
       py::arg("min_blend") = VolumeBlendOptions{}.minBlend, py::arg("up") = py::none(), py::arg("rig") = py::none(),
-      py::arg("weight_joints") = py::none(), py::arg("weight_values") = py::none(),
+      py::arg("weight_joints") = py::none(), py::arg("weight_values") = py::none(), py::arg("dq_scale") = "pivot",
       "Volume keys of the volume blend (share: compute_dqs_share's #V shares): one dict per key of a limb joint whose "
-      "band still loses volume as it bends; with rig and its hybrid weights (hybrid_weights' #V by K weight_joints "
-      "and weight_values) the bends are Bind's skin, the muscle joints included (bone, bone_index, vertices, offsets "
-      "#n by 3 in rest space at weight 1, "
+      "band still loses volume as it bends (bone, bone_index, vertices, offsets #n by 3 in rest space at weight 1, "
       "k1, k2, swing (x, z) or (0, 0), axis; weight = clamp(s (k1 + k2 s) g, 0, 1), s = x^2 + z^2 of the bone's local "
       "rotation quaternion, g the directional factor of volume_blend.h; sample_degrees with the band's change_without "
-      "and change_with the key).");
+      "and change_with the key). rig, weight_joints and weight_values come together (the MuscleRig and its "
+      "hybrid_weights, #V by K): the bends are then Bind's skin, the muscle joints included, their scale carried as "
+      "dq_scale says ('pivot': Blender 4.x/5.x, 'blended': 3.x); without them the skeleton's blend.");
   m.def(
       "volume_key_weights",
       [](const py::list& keys, const DoubleArray& localRotations) {

@@ -65,6 +65,12 @@ SkinWeights weightsArg(const IntArray& joints, const DoubleArray& weights, Eigen
   return w;
 }
 
+DualQuatScale dualQuatScaleArg(const std::string& name) {
+  if (name == "pivot") return DualQuatScale::Pivot;
+  if (name == "blended") return DualQuatScale::Blended;
+  throw InputError("dq_scale must be 'pivot' (Blender 4.x/5.x) or 'blended' (Blender 3.x), got '" + name + "'");
+}
+
 namespace {
 
 // Skinner options from the Python arguments; rest_matrices (None or #J by 4 by 4) only with preserve_volume.
@@ -75,12 +81,7 @@ SkinnerOptions skinnerOptions(int grainSize, int threads, double sumTolerance, b
                               const py::object& dqsShare = py::none()) {
   SkinnerOptions o{grainSize, threads, sumTolerance};
   o.preserveVolume = preserveVolume;
-  if (dqScale == "pivot")
-    o.dualQuatScale = DualQuatScale::Pivot;
-  else if (dqScale == "blended")
-    o.dualQuatScale = DualQuatScale::Blended;
-  else
-    throw InputError("dq_scale must be 'pivot' (Blender 4.x/5.x) or 'blended' (Blender 3.x), got '" + dqScale + "'");
+  o.dualQuatScale = dualQuatScaleArg(dqScale);
   if (!dqsShare.is_none()) {
     const DoubleArray a = dqsShare.cast<DoubleArray>();
     if (a.ndim() != 1) throw InputError("dqs_share must be #V values, got shape " + shapeOf(a));

@@ -6,11 +6,13 @@
 #include <pybind11/stl.h>
 
 #include <mutex>
+#include <string>
 #include <vector>
 
 #include "myoskin/deformation.h"
 #include "myoskin/skeleton.h"
 #include "myoskin/skin_weights.h"
+#include "myoskin/skinning.h"
 #include "myoskin/types.h"
 
 namespace myoskin::python {
@@ -47,6 +49,8 @@ using IntArray = py::array_t<int32_t, py::array::c_style | py::array::forcecast>
 // #V by K joint indices and weights (the same shape; 1-D arrays are one influence per vertex) -> SkinWeights
 // (bind_skinning.cpp); InputError on other shapes or another row count.
 SkinWeights weightsArg(const IntArray& joints, const DoubleArray& weights, Eigen::Index numVertices);
+// 'pivot' | 'blended' -> DualQuatScale (bind_skinning.cpp); InputError on another name.
+DualQuatScale dualQuatScaleArg(const std::string& name);
 // N by 4 by 4 array -> matrices; InputError naming `what` on another shape.
 std::vector<Mat4> matricesFromArray(const MatrixStack& a, const char* what);
 // matrices -> N by 4 by 4 array (a copy).

@@ -260,9 +260,10 @@ def add_volume_blend(skin, arm, share):
 
 def add_volume_keys(core, character, combined, skins, arm, share, rig, joints, weights):
     """The volume keys of the combined character (compute_volume_keys on Bind's skin: its shares, the muscle rig and
-    its hybrid weights) as driven shape keys on each mesh they reach (volume_keys.add_key; one key's #V by 3 offsets in
+    its hybrid weights, this Blender's dual-quaternion scale) as driven shape keys on each mesh they reach (volume_keys.add_key; one key's #V by 3 offsets in
     memory at a time). Returns the number of shape keys added."""
-    keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=joints, weight_values=weights)
+    keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=joints, weight_values=weights,
+                                    dq_scale=dq_scale())
     entries = {skin.name: [] for skin in skins}
     counts = {}
     for key in keys:

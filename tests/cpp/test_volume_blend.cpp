@@ -2,10 +2,12 @@
 // skin bit for bit, a share in between is Blender's multi-modifier mix, rest pose exact, shares of the generated
 // biped keep its knee's band volume, bad input is rejected.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <Eigen/Geometry>
 #include <cmath>
 #include <random>
+#include <thread>
 #include <tuple>
 
 #include "test_support.h"
@@ -526,6 +528,36 @@ TEST(VolumeKeys, SoldierJointsKeepTheirVolumeWithoutFoldingAndRestIsExact) {
     ++measured;
   }
   EXPECT_EQ(measured, 2);
+}
+
+TEST(VolumeKeys, FittedOnBindsSkinTheSameOnAnyThreadCount) {
+  // Bind's skin (a generated biped's extracted muscles as joints, their hybrid weights, the shares): the keys sit on
+  // limb joints, move the skin at most maxOffset limb radii, and come out bit-identical on one thread and on all.
+  SyntheticBodyOptions bo;
+  bo.seed = 3;
+  const Character c = makeSyntheticBody(bo).character;
+  const ExtractionResult extracted = extractMuscles(c);
+  ASSERT_GE(extracted.muscles.size(), 4u);
+  const MuscleRig rig(c.skeleton, extracted.muscles);
+  const SkinWeights hybrid = computeHybridWeights(c.mesh, c.weights, rig);
+  const Eigen::VectorXd share = computeDqsShare(c.skeleton, c.weights, c.mesh);
+  auto fit = [&](size_t threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    return computeVolumeKeys(c.skeleton, c.weights, c.mesh, share, {}, {}, &rig, &hybrid);
+  };
+  const std::vector<VolumeKey> one = fit(1), all = fit(std::max(2u, std::thread::hardware_concurrency()));
+  ASSERT_FALSE(one.empty());
+  ASSERT_EQ(one.size(), all.size());
+  const double reach = VolumeKeyOptions{}.maxOffset * extracted.report.limbRadius;
+  for (size_t k = 0; k < one.size(); ++k) {
+    EXPECT_EQ(one[k].bone, all[k].bone);
+    EXPECT_EQ(one[k].vertices, all[k].vertices);
+    EXPECT_EQ((one[k].offsets - all[k].offsets).cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_EQ(one[k].k1, all[k].k1);
+    EXPECT_EQ(one[k].k2, all[k].k2);
+    EXPECT_TRUE(one[k].offsets.allFinite());
+    EXPECT_LE(one[k].offsets.rowwise().norm().maxCoeff(), reach * (1 + 1e-9));
+  }
 }
 
 TEST(VolumeKeys, BadInputIsRejected) {

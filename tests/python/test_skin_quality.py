@@ -133,7 +133,7 @@ def _assert_joint_targets(rows, labels):
 
 
 def meets_joint_target(r):
-    return (abs(r["myoskin_vk"]) <= 0.5 * abs(r["lbs"]) and abs(r["myoskin_vk"]) <= abs(r["dqs"]) + 1e-3
+    return (r["lbs"] < -0.1 and abs(r["myoskin_vk"]) <= 0.5 * abs(r["lbs"]) and abs(r["myoskin_vk"]) <= abs(r["dqs"]) + 1e-3
             and r["crossings_myoskin_vk"] <= r["crossings_lbs"])
 
 

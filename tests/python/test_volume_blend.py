@@ -83,6 +83,8 @@ def test_bad_shares_and_options_are_value_errors(core):
     rig = core.MuscleRig(character, [])
     with pytest.raises(ValueError, match="come together"):  # Bind's skin: the rig with its hybrid weights
         core.compute_volume_keys(character, np.full(n, 0.5), rig=rig)
+    with pytest.raises(ValueError, match="dq_scale must be"):
+        core.compute_volume_keys(character, np.full(n, 0.5), dq_scale="linear")
 
 
 def test_cli_deform_volume_blend_matches_the_module(core, tmp_path):

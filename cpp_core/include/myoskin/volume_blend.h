@@ -14,13 +14,12 @@
 #include "myoskin/mesh.h"
 #include "myoskin/skeleton.h"
 #include "myoskin/skin_weights.h"
+#include "myoskin/skinning.h"
 #include "myoskin/types.h"
 
 namespace myoskin {
-class MuscleRig;  // deformation.h
-}
 
-namespace myoskin {
+class MuscleRig;  // deformation.h
 
 // ============================================================================
 // Options and per-joint report
@@ -121,6 +120,9 @@ struct VolumeKeyOptions {
   // The largest offset, in body limb radii (the profile is the joint's blend b, 1 where the skin blends evenly across
   // it, tapering to 0 at the band's edge, on the outer side, all round or on the crease's side).
   double maxOffset = 1.0;
+  // With a muscle rig (Bind's skin): how the dual-quaternion part carries the muscle joints' scale, as Bind's
+  // Blender does (SkinnerOptions::dualQuatScale: Pivot on 4.x/5.x, Blended on 3.x).
+  DualQuatScale dualQuatScale = DualQuatScale::Pivot;
 };
 
 // One volume key per limb joint (a real joint, as computeDqsShare's, whose bone or the real joint above it has the Limb
@@ -129,15 +131,17 @@ struct VolumeKeyOptions {
 // `share` (#V, computeDqsShare's) when the joint bends about its reference flexion axis. At each sample flexion the
 // amplitude is the one that keeps the band's cone volume (at most maxOffset limb radii), lowered until the band has
 // no more self-intersecting triangle pairs than without the key; the weight's fit is checked the same way every 30
-// degrees. The profile swells the outer side, the skin all round or the crease's side, whichever leaves the least sum
-// of |band volume change| over the samples (the three fitted in parallel on TBB's threads; the choice does not depend
-// on them). With `rig` and its `hybridWeights` (computeHybridWeights: #V rows over the bones, then the rig's joints)
-// the bends are Bind's skin, the muscle joints included (combinedRestMatrices, the share): the keys give back only
-// the volume the muscles leave lost. Skin that touches other skin under the push (the back of the knee, under the
-// armpit) stays still, the profile faded back over half a limb radius; a key is kept only when it lowers the band's
-// largest |change| over the samples. Deterministic. Throws InputError on what
-// computeDqsShare refuses, a share of the wrong size or outside [0, 1], no samples or a sample outside (0, 180], or
-// maxOffset <= 0.
+// degrees. Skin that touches other skin under the push (the back of the knee, under the armpit) stays still, the
+// profile faded back over half a limb radius: every contact held, or only those the push makes. The profile swells
+// the outer side, the skin all round or the crease's side; of the six fits (sides times contact modes) that lower the
+// band's largest |change| over the samples, the key is the one with the fewest self-intersecting pairs there, then the
+// least sum of |change| (swing axes fitted in parallel on TBB's threads; the choice does not depend on them). With
+// `rig` (built on `skeleton`) and its `hybridWeights` (computeHybridWeights: #V rows over the bones, then the rig's
+// joints) the bends are Bind's skin, the muscle joints included (combinedRestMatrices, the share,
+// keyOptions.dualQuatScale): the keys give back only the volume the muscles leave lost. Deterministic. Throws
+// InputError on what computeDqsShare refuses, a share of the wrong size or outside [0, 1], no samples or a sample
+// outside (0, 180], maxOffset <= 0, a rig without its weights (or weights without a rig), a rig over another number of
+// bones, or hybrid weights of the wrong size or out of range.
 std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWeights& skeletonWeights,
                                          const Mesh& skin, const Eigen::VectorXd& share,
                                          const VolumeBlendOptions& options = {},

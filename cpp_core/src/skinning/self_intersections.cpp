@@ -36,6 +36,7 @@ SelfIntersectionTest::SelfIntersectionTest(const Triangles& triangles, Eigen::In
                                            const std::vector<char>& faceMask)
     : impl_(std::make_unique<Impl>()) {
   const Eigen::Index nf = triangles.rows(), nv = numVertices;
+  if (nv < 0) throw InputError("self intersections: " + std::to_string(nv) + " vertices");
   impl_->numVertices = nv;
   if (!faceMask.empty() && static_cast<Eigen::Index>(faceMask.size()) != nf)
     throw InputError("self intersections: the face mask has " + std::to_string(faceMask.size()) + " entries for " +
@@ -66,6 +67,9 @@ SelfIntersectionTest::SelfIntersectionTest(const Triangles& triangles, Eigen::In
   if (faces.empty()) return;
   PMP::orient_polygon_soup(points, faces);
   PMP::polygon_soup_to_polygon_mesh(points, faces, impl_->mesh);
+  if (impl_->mesh.number_of_faces() != faces.size())  // faceOf maps the soup's faces in order
+    throw InputError("self intersections: the oriented soup did not become a mesh of its " +
+                     std::to_string(faces.size()) + " triangles");
   impl_->source.resize(impl_->mesh.number_of_vertices());
   for (const SurfaceMesh::Vertex_index v : impl_->mesh.vertices())
     impl_->source[v.idx()] = static_cast<int>(impl_->mesh.point(v).x());

@@ -17,7 +17,6 @@
 
 #include "myoskin/character.h"
 #include "myoskin/deformation.h"
-#include "myoskin/skin_weights.h"
 #include "myoskin/errors.h"
 #include "myoskin/extraction.h"
 #include "myoskin/sections.h"
@@ -430,6 +429,7 @@ struct MuscleSkin {
   const MuscleRig* rig = nullptr;
   const SkinWeights* weights = nullptr;
   std::vector<Mat4> rest;
+  DualQuatScale dualQuatScale = DualQuatScale::Pivot;
 };
 
 // Per band vertex the blended affine map of Bind's skin at a skeleton bend (transforms: turnedSubtree's).
@@ -448,6 +448,7 @@ void muscleBandMaps(const Skeleton& skeleton, const Band& band, const MuscleSkin
   SkinnerOptions options;
   options.threads = 1;
   options.jointRest = muscles.rest;
+  options.dualQuatScale = muscles.dualQuatScale;
   for (int i = 0; i < n; ++i) {
     w.joints.row(i) = muscles.weights->joints.row(band.ids[i]);
     w.weights.row(i) = muscles.weights->weights.row(band.ids[i]);
@@ -552,8 +553,8 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   // Contacts: skin that touches other skin under the push (the back of the knee against the calf, an arm against the
   // torso under the armpit) stays still, and the free skin gives the volume back. At each sample the restoring
   // amplitude is tried; the vertices of every triangle pair that intersects with it are held, the profile faded back
-  // to full over kContactFade limb radii around them, until no new vertex is held.
-  const Points free = profile;
+  // to full over kContactFade limb radii around them, until no new vertex is held (at most kContactRounds rounds).
+  const Points unheld = profile;
   std::vector<char> isHeld(static_cast<size_t>(n), 0);
   std::vector<int> heldIds;
   held = false;
@@ -567,7 +568,7 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
         for (int t : {f, g})
           for (int c = 0; c < 3; ++c) {
             const int i = band.triangles(t, c);
-            if (!isHeld[static_cast<size_t>(i)] && free.row(i).squaredNorm() > 0.0)
+            if (!isHeld[static_cast<size_t>(i)] && unheld.row(i).squaredNorm() > 0.0)
               isHeld[static_cast<size_t>(i)] = 1, heldIds.push_back(i);
           }
       if (heldIds.size() == before) break;
@@ -577,7 +578,7 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
         double d2 = std::numeric_limits<double>::infinity();
         for (int h : heldIds) d2 = std::min(d2, (band.rest.row(i) - band.rest.row(h)).squaredNorm());
         const double u = std::min(1.0, std::sqrt(d2) / fade);
-        profile.row(i) = (u * u * (3.0 - 2.0 * u)) * free.row(i);
+        profile.row(i) = (u * u * (3.0 - 2.0 * u)) * unheld.row(i);
       }
     }
   }
@@ -686,7 +687,7 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
       throw InputError("volume keys: the muscle rig has " + std::to_string(rig->skeleton().numBones()) +
                        " bones, the skeleton " + std::to_string(skeleton.numBones()));
     validateSkinWeights(*hybridWeights, skin.numVertices(), skeleton.numBones() + rig->numJoints());
-    muscles = MuscleSkin{rig, hybridWeights, combinedRestMatrices(skeleton, *rig)};
+    muscles = MuscleSkin{rig, hybridWeights, combinedRestMatrices(skeleton, *rig), keyOptions.dualQuatScale};
   }
   if (share.size() != skin.numVertices())
     throw InputError("volume keys: " + std::to_string(share.size()) + " shares for " +
@@ -747,12 +748,12 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
                              holdAll, false, 0, false, {}});
   }
   // In parallel per swing axis; its sides in turn, sharing the band's bends.
-  constexpr size_t kNumSides = 2 * sizeof(kSides) / sizeof(kSides[0]);  // profile sides times contact modes
-  const tbb::blocked_range<size_t> axes(0, fits.size() / kNumSides, 1);
+  constexpr size_t kFitsPerAxis = 2 * sizeof(kSides) / sizeof(kSides[0]);  // profile sides times contact modes
+  const tbb::blocked_range<size_t> axes(0, fits.size() / kFitsPerAxis, 1);
   tbb::parallel_for(axes, [&](const tbb::blocked_range<size_t>& r) {
     for (size_t g = r.begin(); g != r.end(); ++g) {
       BendCache cache;
-      for (size_t f = g * kNumSides; f < (g + 1) * kNumSides; ++f) {
+      for (size_t f = g * kFitsPerAxis; f < (g + 1) * kFitsPerAxis; ++f) {
         // A side whose fit holding every contact held none: holding only new contacts gives the same key.
         if (!fits[f].holdAll && !fits[f - 1].held) continue;
         const JointBand& jb = bands[fits[f].band];
@@ -762,28 +763,24 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
       }
     }
   });
-  // Per swing axis, the profile's side that leaves the least band volume change over the samples (the outer side's
-  // swell first on a tie; sides fitted and guarded against folds alike).
+  // Per swing axis, among the fits that lower the band's largest change over the samples (a key that trades a loss
+  // at one flexion for a gain past rest at another is none), the one with the fewest self-intersecting pairs over
+  // the samples, then the least band volume change (the first in fit order on a tie: the outer side's swell, every
+  // contact held).
   std::vector<VolumeKey> keys;
-  for (size_t first = 0; first < fits.size(); first += kNumSides) {
+  for (size_t first = 0; first < fits.size(); first += kFitsPerAxis) {
     Fit* best = nullptr;
     double bestLoss = std::numeric_limits<double>::infinity();
-    for (size_t f = first; f < first + kNumSides; ++f) {
+    for (size_t f = first; f < first + kFitsPerAxis; ++f) {
       if (!fits[f].ok) continue;
-      double loss = 0.0;
-      for (double c : fits[f].key.changeWith) loss += std::abs(c);
+      double before = 0.0, after = 0.0, loss = 0.0;
+      for (double c : fits[f].key.changeWithout) before = std::max(before, std::abs(c));
+      for (double c : fits[f].key.changeWith) after = std::max(after, std::abs(c)), loss += std::abs(c);
+      if (!(after < before)) continue;
       if (!best || fits[f].folds < best->folds || (fits[f].folds == best->folds && loss < bestLoss)) {
         bestLoss = loss;
         best = &fits[f];
       }
-    }
-    // Kept only when it lowers the band's largest change over the samples (a key that trades a loss at one flexion
-    // for a gain past rest at another is none).
-    if (best) {
-      double before = 0.0, after = 0.0;
-      for (double c : best->key.changeWithout) before = std::max(before, std::abs(c));
-      for (double c : best->key.changeWith) after = std::max(after, std::abs(c));
-      if (!(after < before)) best = nullptr;
     }
     if (best) keys.push_back(std::move(best->key));
   }
