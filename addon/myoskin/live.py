@@ -14,6 +14,9 @@ Route (measured by benchmarks/bench_blender_playback.py, README "Live update"):
    evaluate the core's MuscleRig, write the joints and tag the armature, and Blender's second evaluation
    pass in the same frame_set / update re-skins with the new joints: exact, no one-frame lag, two
    evaluations. So a cache can only cost time, never a wrong frame.
+3. For a skeleton the prediction cannot follow, frame_change_pre switches the bound skins' skinning
+   modifiers off for the first pass (`defer_skinning`; Blender 4.3 and later, skins without simulation
+   state) and frame_change_post switches them on again: the frame skins once, in the second pass.
 The handlers write ORIGINAL data, so every depsgraph (viewport, F12 / Cycles render with
 render.use_lock_interface on) sees the same joints.
 
@@ -32,7 +35,9 @@ from bpy.app.handlers import persistent
 
 from . import anim_compat, binding, blender_io, core_loader, core_skin, muscle_io, rig_io, runtime
 
-stats = {"predicted": 0, "written": 0}  # frames written from the F-curve prediction / from the evaluated pose
+# Frames whose joints were written from the F-curve prediction / from the evaluated pose, and frames whose first
+# evaluation pass skipped the skinning (defer_skinning).
+stats = {"predicted": 0, "written": 0, "deferred": 0}
 
 
 class LiveRig:
@@ -49,6 +54,8 @@ class LiveRig:
         if list(self.rig.joint_names) != self.joint_names:
             raise ValueError(f"'{arm_obj.name}': the bind record's joints do not match its muscles: bind again")
         self.surface_names = record.get("surfaces", [])
+        skins = record.get("skins") or [record.get("skin")]
+        self.skin_names = [n for n in skins if isinstance(n, str)] if isinstance(skins, list) else []
         # The anchored deformer (bind record "deformer": "anchored"): per bound mesh (name, core_skin.MeshFrame,
         # core AnchoredSkin built from the mesh at rest in armature space with its skeleton bones' weights).
         self.anchored = []
@@ -350,6 +357,77 @@ def predict_armature(arm_obj, frame):
     return True
 
 
+# ------------------------------------------------------------------------------------------------
+# Deferred skinning (skeletons the prediction cannot follow: IK, constraints, drivers, NLA)
+# ------------------------------------------------------------------------------------------------
+
+# Modifiers whose step keeps state from frame to frame (or feeds another object's): such a skin must be posed
+# in every evaluation, so it is never deferred. A Geometry Nodes modifier other than the Core Skin may hold a
+# simulation zone, so it counts too.
+STATEFUL_MODIFIERS = frozenset({'CLOTH', 'SOFT_BODY', 'COLLISION', 'DYNAMIC_PAINT', 'PARTICLE_SYSTEM', 'FLUID',
+                                'SURFACE', 'EXPLODE', 'NODES'})
+# Where switching the modifiers off for the first pass pays (bench_blender_playback's 2-pass case, 50k-vertex arm,
+# ms per frame two passes -> deferred): 4.3 4.13 -> 2.96, 4.5 4.26 -> 3.03, 5.2 3.73 -> 2.73; on 3.4 it cost time
+# (12.15 -> 16.03), so 3.x keeps skinning in both passes. 4.2 was not measured.
+DEFER_SKINNING = bpy.app.version >= (4, 3, 0)
+
+
+def skinning_modifiers(arm_obj, live):
+    """The enabled modifiers that skin a live rig's bound meshes (its Armature modifiers, the anchored deformer's
+    Core Skin), or [] when one of those meshes carries simulation state (STATEFUL_MODIFIERS, a rigid body)."""
+    found = []
+    for name in live.skin_names:
+        skin = bpy.data.objects.get(name)
+        if skin is None or skin.type != 'MESH':
+            continue
+        if skin.rigid_body is not None:
+            return []
+        anim = skin.animation_data  # a modifier switch keyed or driven by the user is left alone
+        if anim is not None and any(fc.data_path.startswith("modifiers[")
+                                    for fc in list(anim_compat.object_fcurves(anim)) + list(anim.drivers)):
+            return []
+        core_mod = core_skin.modifier(skin)
+        for mod in skin.modifiers:
+            if mod.type in STATEFUL_MODIFIERS and mod != core_mod:
+                return []
+        found += [m for m in binding.armature_modifiers(skin, arm_obj) + [core_mod]
+                  if m is not None and m.show_viewport]
+    return found
+
+
+def defer_skinning(arm_obj, live, depsgraph):
+    """frame_change_pre of a skeleton that only its evaluation poses (no prediction): the joints are known only
+    after this evaluation, so the first pass would skin with the last frame's joints and frame_change_post's
+    joint update would skin again. Switch the skinning modifiers off for the first pass instead
+    (runtime.deferred; restore_deferred switches them on in frame_change_post, and Blender's second pass skins
+    once, with the right joints). Blender passes frame_change_pre no depsgraph; a render's depsgraph skins with
+    show_render, so there the switch changes nothing but the viewport's next evaluation, due anyway."""
+    if not DEFER_SKINNING or (depsgraph is not None and depsgraph.mode != 'VIEWPORT'):
+        return
+    modifiers = skinning_modifiers(arm_obj, live)
+    for mod in modifiers:
+        runtime.deferred.append((mod.id_data.name, mod.name))
+        mod.show_viewport = False
+    stats["deferred"] += bool(modifiers)
+
+
+def restore_deferred():
+    """Switch the modifiers defer_skinning switched off back on (the second pass then skins their meshes)."""
+    deferred, runtime.deferred = runtime.deferred, []
+    for obj_name, mod_name in deferred:
+        obj = bpy.data.objects.get(obj_name)
+        mod = obj.modifiers.get(mod_name) if obj is not None else None
+        if mod is not None:
+            mod.show_viewport = True
+
+
+@persistent
+def on_save_pre(*_args):
+    """save_pre: never save a skin with its modifiers switched off for a first pass."""
+    if runtime.deferred:
+        restore_deferred()
+
+
 def stop_live(arm_obj, error):
     """A handler failed: say why (runtime.report_error: the panels show it) and turn live update off through
     the property, so its update callback unmutes the baked joint keys and the baked Action plays (the ID
@@ -374,9 +452,11 @@ def on_frame_change_pre(scene, depsgraph=None):
     if not armatures:
         return
     with runtime.guard():
+        restore_deferred()  # left over from a frame change whose frame_change_post did not run
         for arm in armatures:
             try:
-                predict_armature(arm, scene.frame_current_final)
+                if not predict_armature(arm, scene.frame_current_final):
+                    defer_skinning(arm, live_rig(arm), depsgraph)
             except Exception as e:  # noqa: BLE001  (a handler must never raise into Blender)
                 stop_live(arm, e)
 
@@ -385,6 +465,9 @@ def on_frame_change_pre(scene, depsgraph=None):
 def on_frame_change_post(scene, depsgraph=None):
     """frame_change_post: on_update for the armatures the frame_change_pre of this frame change found."""
     found, runtime.frame_armatures = runtime.frame_armatures, None
+    if runtime.deferred:
+        with runtime.guard():
+            restore_deferred()
     if found is not None and found[0] == scene.as_pointer() and found[1] == scene.frame_current_final:
         objects = bpy.data.objects
         lists = tuple([o for o in (objects.get(n) for n in names) if o is not None] for names in found[2:])
@@ -396,6 +479,9 @@ def on_frame_change_post(scene, depsgraph=None):
 @persistent
 def on_update(scene, depsgraph=None):
     """depsgraph_update_post (and frame_change_post): re-pose every bound armature whose skeleton moved."""
+    if runtime.deferred and not runtime.busy():
+        with runtime.guard():
+            restore_deferred()
     if not runtime.busy() and core_loader.available():
         update_all(scene, depsgraph, *split_bound_armatures(scene))
 
@@ -477,7 +563,7 @@ def _handlers():
     h = bpy.app.handlers
     return ((h.frame_change_pre, on_frame_change_pre), (h.frame_change_post, on_frame_change_post),
             (h.depsgraph_update_post, on_update), (h.load_post, on_reload), (h.load_post, on_load),
-            (h.undo_post, on_reload), (h.redo_post, on_reload))
+            (h.undo_post, on_reload), (h.redo_post, on_reload), (h.save_pre, on_save_pre))
 
 
 def register():
@@ -490,4 +576,5 @@ def unregister():
     for handlers, fn in _handlers():
         if fn in handlers:
             handlers.remove(fn)
+    restore_deferred()
     runtime.forget()

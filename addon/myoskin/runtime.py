@@ -47,6 +47,9 @@ rebind = {"armatures": set(), "last_move": 0.0}  # armatures to bind again once 
 # The bound armatures found by the last frame_change_pre, for the frame_change_post of the same frame change
 # (scene pointer, frame, live-update armature names, baked armature names); used once, then cleared.
 frame_armatures = None
+# Skinning modifiers switched off for the first evaluation pass of a frame change (live.defer_skinning), as
+# (object name, modifier name); switched back on by live.restore_deferred in the frame_change_post.
+deferred = []
 
 
 def forget(arm_name=None):
