@@ -37,7 +37,7 @@ from . import anim_compat, binding, blender_io, core_loader, core_skin, muscle_i
 
 # Frames whose joints were written from the F-curve prediction / from the evaluated pose, and frames whose first
 # evaluation pass skipped the skinning (defer_skinning).
-stats = {"predicted": 0, "written": 0, "deferred": 0}
+stats = {"predicted": 0, "written": 0, "deferred": 0, "posed": 0}
 
 
 class LiveRig:
@@ -77,6 +77,7 @@ class LiveRig:
         # a wrong frame): whether the skeleton is predictable (None = check again) and the PredictionPlan.
         self.predictable = None
         self.plan = None
+        self.connected = None  # #B bool: connected skeleton bones (channel_pose, the hand-posing prediction)
         self._pose_bone_keys = None
         self._skeleton_index = None
 
@@ -98,6 +99,7 @@ class LiveRig:
         plan at the next frame."""
         self.predictable = None
         self.plan = None
+        self.connected = None
 
 
 def skeleton_character(record):
@@ -343,6 +345,55 @@ def predicted_pose(arm_obj, live, frame):
                                                  plan.scale)
 
 
+def channel_pose(arm_obj, live):
+    """#B by 4 by 4 skeleton pose by FK from the pose bones' channels as they are now (what Blender evaluates
+    when nothing but the channels poses the skeleton): five foreach_get, the rotation modes and one core call. Which bones are
+    connected (Blender ignores their location) is read once (`live.connected`; edited bones make the prediction
+    differ from the evaluated pose, and the post handlers then drop it with the plan)."""
+    pose_bones = arm_obj.pose.bones
+    index = live.skeleton_indices(pose_bones)
+    if live.connected is None:
+        live.connected = np.array([pose_bones[int(k)].bone.use_connect for k in index])
+    n = len(pose_bones)
+    # One attribute read per bone: foreach_get of the enum returns garbage on Blender 3.4.
+    names = [pb.rotation_mode for pb in pose_bones]
+    modes = np.array([ROTATION_MODES[names[int(k)]] for k in index], dtype=np.int32)
+    read = {}
+    for prop, width in (("location", 3), ("scale", 3), ("rotation_euler", 3), ("rotation_quaternion", 4),
+                        ("rotation_axis_angle", 4)):
+        flat = np.empty(n * width, dtype=np.float32)
+        pose_bones.foreach_get(prop, flat)
+        read[prop] = flat.reshape(n, width)[index].astype(np.float64)
+    location = np.where(live.connected[:, None], 0.0, read["location"])
+    rotation = np.zeros((len(index), 4))
+    rotation[:, :3] = read["rotation_euler"]
+    for mode, prop in ((ROTATION_MODES['QUATERNION'], "rotation_quaternion"),
+                       (ROTATION_MODES['AXIS_ANGLE'], "rotation_axis_angle")):
+        rotation[modes == mode] = read[prop][modes == mode]
+    return core_loader.core().pose_from_channels(live.character, location, [int(m) for m in modes], rotation,
+                                                 read["scale"])
+
+
+def pose_armature(arm_obj):
+    """depsgraph_update_pre: write the joints for the pose the skeleton's channels give (hand posing, a script
+    setting channels), so the evaluation that follows skins once. Only for a skeleton the channels alone pose
+    (no constraints, drivers or NLA); nothing is written when the joints were written for that pose already.
+    Returns True when it wrote."""
+    live = live_rig(arm_obj)
+    if live.predictable is None:
+        live.predictable = _predictable(arm_obj, live)
+        live.plan = None
+    if not live.predictable:
+        return False
+    pose = channel_pose(arm_obj, live)
+    surfaces = muscles_visible(arm_obj)
+    if up_to_date(live, pose, surfaces):
+        return False
+    write_pose(arm_obj, live, pose, surfaces)
+    stats["posed"] += 1
+    return True
+
+
 def predict_armature(arm_obj, frame):
     """frame_change_pre: write the joints for the predicted pose (True when it could predict; nothing is
     written when the pose equals the one the joints were last written for)."""
@@ -477,6 +528,23 @@ def on_frame_change_post(scene, depsgraph=None):
 
 
 @persistent
+def on_update_pre(scene, depsgraph=None):
+    """depsgraph_update_pre: write the joints for the skeleton's channels before Blender evaluates (pose_armature),
+    so hand posing skins once; the post handler still checks the evaluated pose."""
+    if runtime.busy() or not core_loader.available():
+        return
+    armatures, _baked = split_bound_armatures(scene)
+    if not armatures:
+        return
+    with runtime.guard():
+        for arm in armatures:
+            try:
+                pose_armature(arm)
+            except Exception as e:  # noqa: BLE001  (a handler must never raise into Blender)
+                stop_live(arm, e)
+
+
+@persistent
 def on_update(scene, depsgraph=None):
     """depsgraph_update_post (and frame_change_post): re-pose every bound armature whose skeleton moved."""
     if runtime.deferred and not runtime.busy():
@@ -562,7 +630,8 @@ def on_load(*_args):
 def _handlers():
     h = bpy.app.handlers
     return ((h.frame_change_pre, on_frame_change_pre), (h.frame_change_post, on_frame_change_post),
-            (h.depsgraph_update_post, on_update), (h.load_post, on_reload), (h.load_post, on_load),
+            (h.depsgraph_update_pre, on_update_pre), (h.depsgraph_update_post, on_update),
+            (h.load_post, on_reload), (h.load_post, on_load),
             (h.undo_post, on_reload), (h.redo_post, on_reload), (h.save_pre, on_save_pre))
 
 

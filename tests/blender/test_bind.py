@@ -586,6 +586,47 @@ def test_fk_prediction_covers_rotation_modes_location_and_scale():
     assert err < 1e-5 and stats["written"] - before["written"] == 1, (err, stats)
 
 
+def test_hand_posing_skins_once():
+    """Channels set by hand (or a script) are posed in depsgraph_update_pre, before Blender evaluates: every rotation
+    mode, location and scale, connected bones; no rewrite from the evaluated pose afterwards, Blender equals the
+    core. A skeleton with a constraint is not predicted there and is still corrected from the evaluated pose."""
+    arm, skin, state, _ = bound_arm()
+    stats, view_layer = module("live").stats, bpy.context.view_layer
+    poses = [  # bone: (rotation mode, channel, value)
+        {"clavicle": ('ZXY', "rotation_euler", (0.05, -0.1, 0.08)), "forearm": ('XYZ', "rotation_euler", (1.2, 0, 0))},
+        {"upper_arm": ('AXIS_ANGLE', "rotation_axis_angle", (0.5, 0.3, 1.0, 0.2)),
+         "hand": ('QUATERNION', "rotation_quaternion", (0.9, 0.3, 0.0, 0.1))},
+        {"forearm": ('YXZ', "rotation_euler", (0.4, 0.2, -0.1))},
+    ]
+    before = dict(stats)
+    for k, pose in enumerate(poses):
+        for name, (mode, channel, value) in pose.items():
+            pb = arm.pose.bones[name]
+            pb.rotation_mode = mode
+            setattr(pb, channel, value)
+        arm.pose.bones["clavicle"].location = (0.01 * k, 0.02, -0.01)
+        arm.pose.bones["hand"].scale = (1.0 + 0.05 * k,) * 3
+        view_layer.update()
+        err = np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max()
+        assert err < 1e-5, f"pose {k}: {err:.3g} m"
+    assert stats["posed"] - before["posed"] == 3 and stats["written"] == before["written"], stats
+    view_layer.update()  # nothing moved: nothing written
+    assert stats["posed"] - before["posed"] == 3
+    limit = arm.pose.bones["forearm"].constraints.new('LIMIT_ROTATION')
+    limit.use_limit_x, limit.min_x, limit.max_x = True, 0.0, 0.3
+    before = dict(stats)
+    arm.pose.bones["forearm"].rotation_euler = (0.9, 0.1, 0.0)  # the limit holds it at 0.3
+    view_layer.update()
+    err = np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max()
+    assert err < 1e-5 and stats["written"] - before["written"] == 1, (err, stats)
+    before = dict(stats)
+    arm.pose.bones["forearm"].rotation_euler = (0.8, 0.3, 0.0)
+    view_layer.update()
+    err = np.abs(module("blender_io").evaluated_vertices(skin) - core_skin(arm, skin, state)).max()
+    assert err < 1e-5 and stats["posed"] == before["posed"] and stats["written"] - before["written"] == 1, (err, stats)
+    assert state.live and not module("runtime").last_error(arm)  # no handler failed on the way
+
+
 def test_export_gltf_with_helper_bones():
     arm, skin, state, _ = bound_arm()
     path = os.path.join(TMP, "bound.glb")

@@ -152,8 +152,9 @@ TEST(Paths, StraightWhenLineClearsSphereAndWrapsOtherwise) {
 }
 
 TEST(Paths, JointWrapIsShortestAmongPerturbedPaths) {
+  // Bent at J by 0.2 rad, more than the sphere's angular radius (0.15 rad seen from I): the geodesic.
   const Vec3 O(-0.8, 0.05, 0.1), I(0.7, -0.02, 0.05), J(0.02, 0.01, 0.0);
-  const double r = 0.25;
+  const double r = 0.1;
   paths::ActionPath p;
   paths::jointWrapPath(O, I, J, r, Vec3(0.1, 1, 0.2), p);
   ASSERT_TRUE(p.wrapped);
@@ -177,6 +178,57 @@ TEST(Paths, JointWrapIsShortestAmongPerturbedPaths) {
     EXPECT_GE((Q1 - O).norm() + arc + (I - Q2).norm(), p.length - 1e-12);
   }
   EXPECT_GT(valid, 100);
+}
+
+TEST(Paths, JointWrapIsContinuousThroughAStraightLimb) {
+  // A muscle over a straight joint (O, J and I in line, the rest pose of a straight limb) on its +Y side. Its
+  // path must not swing round the joint when I moves by rounding (float32 pose matrices) or by a small bend in
+  // any direction: points along it move by at most a few times I's own move.
+  const Vec3 O(-0.3, 0.0, 0.0), J(0.0, 0.0, 0.0), side = Vec3::UnitY();
+  const double r = 0.01;  // angular radius seen from I: 0.01 / 0.25 = 0.04 rad
+  auto pointsOf = [&](const Vec3& I) {
+    paths::ActionPath p;
+    paths::jointWrapPath(O, I, J, r, side, p);
+    std::vector<Vec3> out;
+    for (int k = 0; k <= 20; ++k) {
+      Vec3 x, t;
+      paths::pointAt(p, p.length * k / 20.0, x, t);
+      out.push_back(x);
+    }
+    return out;
+  };
+  auto moved = [](const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
+    double m = 0.0;
+    for (size_t k = 0; k < a.size(); ++k) m = std::max(m, (a[k] - b[k]).norm());
+    return m;
+  };
+  const Vec3 I(0.25, 0.0, 0.0);
+  const std::vector<Vec3> rest = pointsOf(I);
+  Vec3 x, t;
+  paths::ActionPath p;
+  paths::jointWrapPath(O, I, J, r, side, p);
+  ASSERT_TRUE(p.wrapped);
+  paths::pointAt(p, p.pieces[0].length + 0.5 * p.pieces[1].length, x, t);
+  EXPECT_GT(x.y(), 0.99 * r);  // over the +Y side
+  std::mt19937 rng(11);
+  std::normal_distribution<double> nd(0.0, 1.0);
+  for (double eps : {1e-9, 1e-7, 1e-5}) {
+    for (int trial = 0; trial < 50; ++trial) {
+      const Vec3 d = eps * Vec3(nd(rng), nd(rng), nd(rng)).normalized();
+      EXPECT_LT(moved(pointsOf(I + d), rest), 10.0 * eps + 1e-12) << "I moved by " << eps;
+    }
+  }
+  // Bending towards, away from and across the side, in steps of 1e-4 rad up to 0.02 rad (half the angular
+  // radius): no step moves the path by more than 50 times the step's move of I.
+  for (const Vec3& across : {Vec3(0, 1, 0), Vec3(0, -1, 0), Vec3(0, 0, 1), Vec3(0, 0.6, 0.8)}) {
+    std::vector<Vec3> last = rest;
+    for (int k = 1; k <= 200; ++k) {
+      const double a = 1e-4 * k;
+      const std::vector<Vec3> now = pointsOf(0.25 * (std::cos(a) * Vec3::UnitX() + std::sin(a) * across));
+      EXPECT_LT(moved(now, last), 50.0 * 0.25e-4) << "bend " << a << " across " << across.transpose();
+      last = now;
+    }
+  }
 }
 
 TEST(Paths, BoneWrapTangentAndShortestAndGeodesic) {
