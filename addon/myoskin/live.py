@@ -14,7 +14,9 @@ Route (measured by benchmarks/bench_blender_playback.py, README "Live update"):
    evaluate the core's MuscleRig, write the joints and tag the armature, and Blender's second evaluation
    pass in the same frame_set / update re-skins with the new joints: exact, no one-frame lag, two
    evaluations. So a cache can only cost time, never a wrong frame.
-3. For a skeleton the prediction cannot follow, frame_change_pre switches the bound skins' skinning
+3. Hand posing (and scripts setting channels): `depsgraph_update_pre` poses the joints from the skeleton's
+   channels by the same FK before Blender evaluates (`pose_armature`), so the update skins once.
+4. For a skeleton the prediction cannot follow, frame_change_pre switches the bound skins' skinning
    modifiers off for the first pass (`defer_skinning`; Blender 4.3 and later, skins without simulation
    state) and frame_change_post switches them on again: the frame skins once, in the second pass.
 The handlers write ORIGINAL data, so every depsgraph (viewport, F12 / Cycles render with
