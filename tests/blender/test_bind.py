@@ -516,7 +516,7 @@ def test_deferred_skinning_spares_simulations_user_switches_and_saved_files():
     limit = arm.pose.bones["forearm"].constraints.new('LIMIT_ROTATION')  # unpredictable: read after evaluation
     limit.use_limit_x, limit.min_x, limit.max_x = True, 0.0, 1.2
     key_elbow(arm, ((1, 0.0), (10, 100.0)))
-    scene.frame_set(1)
+    scene.frame_set(9)  # the limit acts: a prediction cached before the constraint existed is dropped here
 
     def play(frames, exact=True):
         assert frames
@@ -530,7 +530,8 @@ def test_deferred_skinning_spares_simulations_user_switches_and_saved_files():
         return stats["deferred"] - before
 
     expected = 3 if live.DEFER_SKINNING else 0
-    assert play((4, 8, 6)) == expected
+    count = play((4, 8, 6))
+    assert count == expected, (count, expected)
     collision = skin.modifiers.new("Collision", 'COLLISION')
     assert play((3, 7, 5)) == 0
     skin.modifiers.remove(collision)
