@@ -80,6 +80,7 @@ class LiveRig:
         self.predictable = None
         self.plan = None
         self.connected = None  # #B bool: connected skeleton bones (channel_pose, the hand-posing prediction)
+        self.channels = None  # the skeleton's channels channel_pose last read (float32, flat)
         self._pose_bone_keys = None
         self._skeleton_index = None
 
@@ -102,6 +103,7 @@ class LiveRig:
         self.predictable = None
         self.plan = None
         self.connected = None
+        self.channels = None
 
 
 def skeleton_character(record):
@@ -349,38 +351,46 @@ def predicted_pose(arm_obj, live, frame):
 
 def channel_pose(arm_obj, live):
     """#B by 4 by 4 skeleton pose by FK from the pose bones' channels as they are now (what Blender evaluates
-    when nothing but the channels poses the skeleton): five foreach_get, the rotation modes and one core call. Which bones are
+    when nothing but the channels poses the skeleton), or None when the skeleton's channels are those of the
+    last call (`live.channels`): five foreach_get, then the rotation modes and one core call. Which bones are
     connected (Blender ignores their location) is read once (`live.connected`; edited bones make the prediction
     differ from the evaluated pose, and the post handlers then drop it with the plan)."""
     pose_bones = arm_obj.pose.bones
     index = live.skeleton_indices(pose_bones)
+    n = len(pose_bones)
+    read = {}
+    for prop, width in CHANNEL_WIDTHS:
+        flat = np.empty(n * width, dtype=np.float32)
+        pose_bones.foreach_get(prop, flat)
+        read[prop] = flat.reshape(n, width)[index]
+    raw = np.concatenate([read[prop].ravel() for prop, _w in CHANNEL_WIDTHS])
+    if live.channels is not None and np.array_equal(raw, live.channels):
+        return None
+    live.channels = raw
     if live.connected is None:
         live.connected = np.array([pose_bones[int(k)].bone.use_connect for k in index])
-    n = len(pose_bones)
     # One attribute read per bone: foreach_get of the enum returns garbage on Blender 3.4.
     names = [pb.rotation_mode for pb in pose_bones]
     modes = np.array([ROTATION_MODES[names[int(k)]] for k in index], dtype=np.int32)
-    read = {}
-    for prop, width in (("location", 3), ("scale", 3), ("rotation_euler", 3), ("rotation_quaternion", 4),
-                        ("rotation_axis_angle", 4)):
-        flat = np.empty(n * width, dtype=np.float32)
-        pose_bones.foreach_get(prop, flat)
-        read[prop] = flat.reshape(n, width)[index].astype(np.float64)
-    location = np.where(live.connected[:, None], 0.0, read["location"])
+    location = np.where(live.connected[:, None], 0.0, read["location"].astype(np.float64))
     rotation = np.zeros((len(index), 4))
     rotation[:, :3] = read["rotation_euler"]
     for mode, prop in ((ROTATION_MODES['QUATERNION'], "rotation_quaternion"),
                        (ROTATION_MODES['AXIS_ANGLE'], "rotation_axis_angle")):
         rotation[modes == mode] = read[prop][modes == mode]
     return core_loader.core().pose_from_channels(live.character, location, [int(m) for m in modes], rotation,
-                                                 read["scale"])
+                                                 read["scale"].astype(np.float64))
+
+
+CHANNEL_WIDTHS = (("location", 3), ("scale", 3), ("rotation_euler", 3), ("rotation_quaternion", 4),
+                  ("rotation_axis_angle", 4))
 
 
 def pose_armature(arm_obj):
     """depsgraph_update_pre: write the joints for the pose the skeleton's channels give (hand posing, a script
     setting channels), so the evaluation that follows skins once. Only for a skeleton the channels alone pose
-    (no constraints, drivers or NLA); nothing is written when the joints were written for that pose already.
-    Returns True when it wrote."""
+    (no constraints, drivers or NLA), and only when its channels changed since the last call and the joints were
+    not written for that pose already. Returns True when it wrote."""
     live = live_rig(arm_obj)
     if live.predictable is None:
         live.predictable = _predictable(arm_obj, live)
@@ -388,6 +398,8 @@ def pose_armature(arm_obj):
     if not live.predictable:
         return False
     pose = channel_pose(arm_obj, live)
+    if pose is None:
+        return False
     surfaces = muscles_visible(arm_obj)
     if up_to_date(live, pose, surfaces):
         return False
