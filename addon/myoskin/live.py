@@ -23,7 +23,7 @@ The handlers write ORIGINAL data, so every depsgraph (viewport, F12 / Cycles ren
 render.use_lock_interface on) sees the same joints.
 
 State: nothing is held between calls but a cache keyed by armature name and the bind record's text (rebuilt
-after reload or undo), owned by runtime.py (runtime.live_rigs) with the re-entrancy guard every handler
+after reload or undo) and, within one frame change, the modifiers its first pass skips (runtime.deferred), owned by runtime.py (runtime.live_rigs) with the re-entrancy guard every handler
 shares; objects are looked up in bpy.data on every call. A handler that fails reports it through
 runtime.report_error (the panels show it). Without the add-on the file opens and shows the joints as last
 written (or as baked to the Action).
@@ -81,6 +81,7 @@ class LiveRig:
         self.plan = None
         self.connected = None  # #B bool: connected skeleton bones (channel_pose, the hand-posing prediction)
         self.channels = None  # the skeleton's channels channel_pose last read (float32, flat)
+        self.still = False  # the last post handler found the skeleton where the joints were written for (defer_skinning)
         self._pose_bone_keys = None
         self._skeleton_index = None
 
@@ -175,7 +176,8 @@ def update_armature(arm_obj, depsgraph=None, force=False, surfaces=None):
     live = live_rig(arm_obj)
     pose = evaluated_pose(arm_obj, live, depsgraph)
     surfaces = muscles_visible(arm_obj) if surfaces is None else surfaces
-    if not force and up_to_date(live, pose, surfaces):
+    live.still = not force and up_to_date(live, pose, surfaces)
+    if live.still:
         return False
     write_pose(arm_obj, live, pose, surfaces)
     live.forget_prediction()  # the skeleton did not move as predicted (IK, constraints, hand posing)
@@ -389,9 +391,12 @@ CHANNEL_WIDTHS = (("location", 3), ("scale", 3), ("rotation_euler", 3), ("rotati
 def pose_armature(arm_obj):
     """depsgraph_update_pre: write the joints for the pose the skeleton's channels give (hand posing, a script
     setting channels), so the evaluation that follows skins once. Only for a skeleton the channels alone pose
-    (no constraints, drivers or NLA), and only when its channels changed since the last call and the joints were
-    not written for that pose already. Returns True when it wrote."""
+    (no constraints, drivers or NLA) and the joints deformer (not the anchored one), and only when its channels
+    changed since the last call and the joints were not written for that pose already. Returns True when it
+    wrote."""
     live = live_rig(arm_obj)
+    if live.anchored:  # its offsets written here were not those Blender evaluated (0.13 mm off): post writes them
+        return False
     if live.predictable is None:
         live.predictable = _predictable(arm_obj, live)
         live.plan = None
@@ -431,10 +436,42 @@ def predict_armature(arm_obj, frame):
 # simulation zone, so it counts too.
 STATEFUL_MODIFIERS = frozenset({'CLOTH', 'SOFT_BODY', 'COLLISION', 'DYNAMIC_PAINT', 'PARTICLE_SYSTEM', 'FLUID',
                                 'SURFACE', 'EXPLODE', 'NODES'})
+# Simulations on other objects that may read the skin (a garment's cloth over a Surface Deform, particles, a
+# Geometry Nodes simulation zone reading it through Object Info): while the scene has one, nothing is deferred.
+SIMULATION_MODIFIERS = frozenset({'CLOTH', 'SOFT_BODY', 'DYNAMIC_PAINT', 'PARTICLE_SYSTEM', 'FLUID', 'EXPLODE'})
 # Where switching the modifiers off for the first pass pays (bench_blender_playback's 2-pass case, 50k-vertex arm,
 # ms per frame two passes -> deferred): 4.3 4.13 -> 2.96, 4.5 4.26 -> 3.03, 5.2 3.73 -> 2.73; on 3.4 it cost time
 # (12.15 -> 16.03), so 3.x keeps skinning in both passes. 4.2 was not measured.
 DEFER_SKINNING = bpy.app.version >= (4, 3, 0)
+
+
+def _has_simulation_zone(tree, seen):
+    """True when a node tree (or a group inside it) holds a Geometry Nodes simulation zone."""
+    if tree is None or tree.as_pointer() in seen:
+        return False
+    seen.add(tree.as_pointer())
+    for node in tree.nodes:
+        if node.bl_idname == "GeometryNodeSimulationOutput":
+            return True
+        if getattr(node, "node_tree", None) is not None and _has_simulation_zone(node.node_tree, seen):
+            return True
+    return False
+
+
+def scene_simulates(scene):
+    """True when something in the scene steps a simulation from frame to frame (SIMULATION_MODIFIERS, a
+    Geometry Nodes simulation zone, an enabled rigid body world): its step could read a skin."""
+    world = scene.rigidbody_world
+    if world is not None and world.enabled:
+        return True
+    seen = set()
+    for obj in scene.objects:
+        for mod in obj.modifiers:
+            if mod.type in SIMULATION_MODIFIERS:
+                return True
+            if mod.type == 'NODES' and _has_simulation_zone(mod.node_group, seen):
+                return True
+    return False
 
 
 def skinning_modifiers(arm_obj, live):
@@ -460,30 +497,40 @@ def skinning_modifiers(arm_obj, live):
     return found
 
 
-def defer_skinning(arm_obj, live, depsgraph):
+def _rendering():
+    is_job_running = getattr(bpy.app, "is_job_running", None)
+    return bool(is_job_running and is_job_running('RENDER'))
+
+
+def defer_skinning(arm_obj, live, simulating):
     """frame_change_pre of a skeleton that only its evaluation poses (no prediction): the joints are known only
     after this evaluation, so the first pass would skin with the last frame's joints and frame_change_post's
     joint update would skin again. Switch the skinning modifiers off for the first pass instead
     (runtime.deferred; restore_deferred switches them on in frame_change_post, and Blender's second pass skins
-    once, with the right joints). Blender passes frame_change_pre no depsgraph; a render's depsgraph skins with
-    show_render, so there the switch changes nothing but the viewport's next evaluation, due anyway."""
-    if not DEFER_SKINNING or (depsgraph is not None and depsgraph.mode != 'VIEWPORT'):
+    once, with the right joints). Not while the scene simulates (`simulating`, scene_simulates), not during a
+    render (its depsgraph skins with show_render: the switch would only add a pass), and not after a frame in
+    which the skeleton did not move (`live.still`: the skin needed no evaluation then, a switch would force one)."""
+    if not DEFER_SKINNING or simulating or live.still or _rendering():
         return
     modifiers = skinning_modifiers(arm_obj, live)
     for mod in modifiers:
-        runtime.deferred.append((mod.id_data.name, mod.name))
         mod.show_viewport = False
+        runtime.deferred.append((mod.id_data.name, mod.name))
     stats["deferred"] += bool(modifiers)
 
 
 def restore_deferred():
-    """Switch the modifiers defer_skinning switched off back on (the second pass then skins their meshes)."""
+    """Switch the modifiers defer_skinning switched off back on (the second pass then skins their meshes); one
+    that cannot be switched on is reported, the others still are."""
     deferred, runtime.deferred = runtime.deferred, []
     for obj_name, mod_name in deferred:
-        obj = bpy.data.objects.get(obj_name)
-        mod = obj.modifiers.get(mod_name) if obj is not None else None
-        if mod is not None:
-            mod.show_viewport = True
+        try:
+            obj = bpy.data.objects.get(obj_name)
+            mod = obj.modifiers.get(mod_name) if obj is not None else None
+            if mod is not None:
+                mod.show_viewport = True
+        except Exception as e:  # noqa: BLE001  (a handler must never raise into Blender)
+            print(f"Myoskin: could not switch '{mod_name}' of '{obj_name}' back on: {e}")
 
 
 @persistent
@@ -518,12 +565,22 @@ def on_frame_change_pre(scene, depsgraph=None):
         return
     with runtime.guard():
         restore_deferred()  # left over from a frame change whose frame_change_post did not run
+        simulating = None
         for arm in armatures:
             try:
-                if not predict_armature(arm, scene.frame_current_final):
-                    defer_skinning(arm, live_rig(arm), depsgraph)
+                predicted = predict_armature(arm, scene.frame_current_final)
             except Exception as e:  # noqa: BLE001  (a handler must never raise into Blender)
                 stop_live(arm, e)
+                continue
+            if predicted:
+                continue
+            try:  # a failure here only costs the second skinning pass
+                if simulating is None:
+                    simulating = scene_simulates(scene)
+                defer_skinning(arm, live_rig(arm), simulating)
+            except Exception as e:  # noqa: BLE001
+                restore_deferred()
+                runtime.report_error(arm, f"'{arm.name}': skinning once per frame failed, skinning twice: {e}")
 
 
 @persistent
@@ -610,8 +667,10 @@ def on_live_changed(arm_obj, state):
 
 @persistent
 def on_reload(*_args):
-    """load_post / undo_post / redo_post: the data were replaced, so cached rigs and poses are stale."""
+    """load_post / undo_post / redo_post: the data were replaced, so cached rigs and poses are stale (and the
+    modifiers a first pass switched off, if any, belong to data that are gone)."""
     runtime.forget()
+    runtime.deferred = []
     rig_io.forget_structures()
 
 

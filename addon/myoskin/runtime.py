@@ -5,7 +5,8 @@ add-on, so any layer may import it:
 - the one re-entrancy guard of every handler (`busy()`, `with guard():`): our own writes trigger
   depsgraph updates and frame changes too;
 - the caches that live between handler calls (`live_rigs`, `rebind`, `frame_armatures`), keyed by armature
-  name and dropped by `forget()` (they hold no Blender data: those die on reload and undo);
+  name and dropped by `forget()` (they hold no Blender data: those die on reload and undo), and `deferred`, the
+  modifiers one frame change's first pass skips (names; emptied by the frame_change_post of that change);
 - the dispatcher of the property update callbacks (state.py defines the properties, but the work is done by
   layers above it, which `connect()` their functions at register time);
 - the errors facility: `report_error()` stores the last error per armature where the panels draw it

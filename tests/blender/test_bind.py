@@ -535,6 +535,12 @@ def test_deferred_skinning_spares_simulations_user_switches_and_saved_files():
     collision = skin.modifiers.new("Collision", 'COLLISION')
     assert play((3, 7, 5)) == 0
     skin.modifiers.remove(collision)
+    garment = bpy.data.objects.new("Garment", bpy.data.meshes.new("Garment"))  # a cloth elsewhere in the scene
+    scene.collection.objects.link(garment)
+    garment.modifiers.new("Cloth", 'CLOTH')
+    assert play((4, 8, 6)) == 0
+    bpy.data.objects.remove(garment)
+    assert play((3, 7, 5)) == expected
     blend = module("binding").volume_blend_modifier(skin, arm)
     blend.show_viewport = False  # the user's switch: not deferred, not switched back on
     assert play((2, 9), exact=False) == (2 if live.DEFER_SKINNING else 0)
@@ -543,8 +549,13 @@ def test_deferred_skinning_spares_simulations_user_switches_and_saved_files():
     if live.DEFER_SKINNING:  # a save between the passes (frame_change_pre alone) saves the modifiers on
         live.on_frame_change_pre(scene)
         assert runtime.deferred and not module("binding").armature_modifier(skin, arm).show_viewport
-        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(TMP, "deferred.blend"))
+        path = os.path.join(TMP, "deferred.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=path)
         assert not runtime.deferred and len(skin.modifiers) >= 2 and all(m.show_viewport for m in skin.modifiers)
+        name = skin.name
+        bpy.ops.wm.open_mainfile(filepath=path)
+        reloaded = bpy.data.objects[name]
+        assert len(reloaded.modifiers) >= 2 and all(m.show_viewport for m in reloaded.modifiers)
 
 
 def test_fk_prediction_covers_rotation_modes_location_and_scale():

@@ -123,25 +123,31 @@ void straightPath(const Vec3& O, const Vec3& I, ActionPath& path) {
   finish(path, false);
 }
 
+// The widest bend (sine) within which a joint wrap's side draws its plane (jointWrapPath): 0.1, about 6 degrees.
+constexpr double kSideBand = 0.1;
+
 void jointWrapPath(const Vec3& O, const Vec3& I, const Vec3& J, double r, const Vec3& side, ActionPath& path) {
   const Vec3 o = O - J, i = I - J;
   const double dO = o.norm(), dI = i.norm();
   if (!(r > 0) || dO < 1e-12 || dI < 1e-12) return straightPath(O, I, path);
   const Vec3 ex = o / dO;
   const double rr = std::min({r, 0.999 * dO, 0.999 * dI});
-  // The plane of the wrap holds O and J, and I where the path bends by more than the sphere's angular radius
-  // beta = rr / min(dO, dI) (the geodesic). As O, J and I come into line (a straight limb at rest) that plane
-  // would swing with any rounding, a quarter turn round the joint for a bend too small to see, so there the
-  // side direction (the muscle's side of the joint) holds it: its in-plane axis ey is the principal axis of
+  // The plane of the wrap holds O and J, and I where the path bends by more than beta, the sphere's angular
+  // radius rr / min(dO, dI) capped at kSideBand (the geodesic). As O, J and I come into line (a straight limb at
+  // rest) that plane would swing with any rounding, a quarter turn round the joint for a bend too small to see,
+  // so within beta the side direction (the muscle's side of the joint) draws it: its in-plane axis ey is the
+  // principal axis of
   //   a a^T + w s s^T,  a = I's offset across ex / dI (|a| = sine of the bend), s = the unit side across ex,
   //   w = beta^2 (1 - |a|^2 / beta^2)^2 for |a| < beta, else 0;
-  // continuous in O, I and side except where a lies across s with |a|^2 = w.
+  // continuous in O, I and side except where a lies across s with |a|^2 = w (a bend across the side, where
+  // the plane turns from the side's to the bend's). Within beta I lies off the plane and the path is not the
+  // geodesic; the cap keeps that band to bends of a few degrees for the wide wraps (an ankle's retinaculum).
   Vec3 s = side - side.dot(ex) * ex;
   if (s.norm() < 1e-12 * std::max(side.norm(), 1e-300)) s = ex.unitOrthogonal();  // no usable side
   s.normalize();
   const Vec3 v = ex.cross(s);
   const Vec3 bend = (i - i.dot(ex) * ex) / dI;  // a
-  const double beta2 = std::pow(rr / std::min(dO, dI), 2), bend2 = bend.squaredNorm();
+  const double beta2 = std::pow(std::min(rr / std::min(dO, dI), kSideBand), 2), bend2 = bend.squaredNorm();
   const double w = bend2 < beta2 ? beta2 * std::pow(1.0 - bend2 / beta2, 2) : 0.0;
   const double au = bend.dot(s), av = bend.dot(v);
   const double phi = 0.5 * std::atan2(2.0 * au * av, au * au + w - av * av);
