@@ -23,8 +23,8 @@ The handlers write ORIGINAL data, so every depsgraph (viewport, F12 / Cycles ren
 render.use_lock_interface on) sees the same joints.
 
 State: nothing is held between calls but a cache keyed by armature name and the bind record's text (rebuilt
-after reload or undo) and, within one frame change, the modifiers its first pass skips (runtime.deferred), owned by runtime.py (runtime.live_rigs) with the re-entrancy guard every handler
-shares; objects are looked up in bpy.data on every call. A handler that fails reports it through
+after reload or undo) and, within one frame change, the modifiers its first pass skips (runtime.deferred),
+owned by runtime.py (runtime.live_rigs, runtime.deferred) with the re-entrancy guard every handler shares; objects are looked up in bpy.data on every call. A handler that fails reports it through
 runtime.report_error (the panels show it). Without the add-on the file opens and shows the joints as last
 written (or as baked to the Action).
 
@@ -287,6 +287,34 @@ ROTATION_MODES = {'AXIS_ANGLE': -1, 'QUATERNION': 0, 'XYZ': 1, 'XZY': 2, 'YXZ': 
 ROTATION_CHANNEL = {'QUATERNION': "rotation_quaternion", 'AXIS_ANGLE': "rotation_axis_angle"}  # else Euler
 
 
+CHANNEL_WIDTHS = (("location", 3), ("scale", 3), ("rotation_euler", 3), ("rotation_quaternion", 4),
+                  ("rotation_axis_angle", 4))
+
+
+def read_channels(pose_bones, index):
+    """{channel: #B by width float32} of the skeleton bones (`index` into pose_bones), one foreach_get each."""
+    n, read = len(pose_bones), {}
+    for prop, width in CHANNEL_WIDTHS:
+        flat = np.empty(n * width, dtype=np.float32)
+        pose_bones.foreach_get(prop, flat)
+        read[prop] = flat.reshape(n, width)[index]
+    return read
+
+
+def skeleton_channels(pose_bones, index, read, connected):
+    """What pose_from_channels takes, from read_channels' arrays: (#B by 3 location, 0 for a bone connected to its
+    parent (Blender ignores it), rotation mode names, #B by 4 rotation of each bone's mode, #B by 3 scale).
+    The modes are read bone by bone: foreach_get of the enum returns garbage on Blender 3.4."""
+    names = [pb.rotation_mode for pb in pose_bones]
+    modes = [names[int(k)] for k in index]
+    location = np.where(np.asarray(connected)[:, None], 0.0, read["location"].astype(np.float64))
+    rotation = np.zeros((len(index), 4))
+    for i, mode in enumerate(modes):
+        prop = ROTATION_CHANNEL.get(mode, "rotation_euler")
+        rotation[i, :CHANNELS[prop]] = read[prop][i]
+    return location, modes, rotation, read["scale"].astype(np.float64)
+
+
 class PredictionPlan:
     """What predicted_pose needs, read once: the skeleton bones' channels as they are now (location, scale,
     the rotation of each bone's mode as one #B by 4 array; the location of a bone connected to its parent
@@ -304,13 +332,10 @@ class PredictionPlan:
         self.action = anim_compat.action_key(anim)
         self.fcurve_count = len(fcurves)
         bones = [pose_bones[int(k)] for k in index]
-        self.modes = [ROTATION_MODES[pb.rotation_mode] for pb in bones]  # the core's (Blender's) codes
-        rotation = [ROTATION_CHANNEL.get(pb.rotation_mode, "rotation_euler") for pb in bones]
-        self.location = np.array([(0.0, 0.0, 0.0) if pb.bone.use_connect else tuple(pb.location) for pb in bones])
-        self.scale = np.array([tuple(pb.scale) for pb in bones])
-        self.rotation = np.zeros((len(bones), 4))
-        for i, (pb, prop) in enumerate(zip(bones, rotation)):
-            self.rotation[i, :CHANNELS[prop]] = tuple(getattr(pb, prop))
+        self.location, modes, self.rotation, self.scale = skeleton_channels(
+            pose_bones, index, read_channels(pose_bones, index), [pb.bone.use_connect for pb in bones])
+        self.modes = [ROTATION_MODES[m] for m in modes]  # the core's (Blender's) codes
+        rotation = [ROTATION_CHANNEL.get(m, "rotation_euler") for m in modes]
         target = {"location": self.location, "scale": self.scale}
         paths = {}
         for i, (pb, prop) in enumerate(zip(bones, rotation)):
@@ -359,33 +384,16 @@ def channel_pose(arm_obj, live):
     differ from the evaluated pose, and the post handlers then drop it with the plan)."""
     pose_bones = arm_obj.pose.bones
     index = live.skeleton_indices(pose_bones)
-    n = len(pose_bones)
-    read = {}
-    for prop, width in CHANNEL_WIDTHS:
-        flat = np.empty(n * width, dtype=np.float32)
-        pose_bones.foreach_get(prop, flat)
-        read[prop] = flat.reshape(n, width)[index]
+    read = read_channels(pose_bones, index)
     raw = np.concatenate([read[prop].ravel() for prop, _w in CHANNEL_WIDTHS])
     if live.channels is not None and np.array_equal(raw, live.channels):
         return None
     live.channels = raw
     if live.connected is None:
         live.connected = np.array([pose_bones[int(k)].bone.use_connect for k in index])
-    # One attribute read per bone: foreach_get of the enum returns garbage on Blender 3.4.
-    names = [pb.rotation_mode for pb in pose_bones]
-    modes = np.array([ROTATION_MODES[names[int(k)]] for k in index], dtype=np.int32)
-    location = np.where(live.connected[:, None], 0.0, read["location"].astype(np.float64))
-    rotation = np.zeros((len(index), 4))
-    rotation[:, :3] = read["rotation_euler"]
-    for mode, prop in ((ROTATION_MODES['QUATERNION'], "rotation_quaternion"),
-                       (ROTATION_MODES['AXIS_ANGLE'], "rotation_axis_angle")):
-        rotation[modes == mode] = read[prop][modes == mode]
-    return core_loader.core().pose_from_channels(live.character, location, [int(m) for m in modes], rotation,
-                                                 read["scale"].astype(np.float64))
-
-
-CHANNEL_WIDTHS = (("location", 3), ("scale", 3), ("rotation_euler", 3), ("rotation_quaternion", 4),
-                  ("rotation_axis_angle", 4))
+    location, modes, rotation, scale = skeleton_channels(pose_bones, index, read, live.connected)
+    return core_loader.core().pose_from_channels(live.character, location, [ROTATION_MODES[m] for m in modes],
+                                                 rotation, scale)
 
 
 def pose_armature(arm_obj):

@@ -50,10 +50,10 @@ void straightPath(const Vec3& O, const Vec3& I, ActionPath& path);
 
 // Around a sphere (centre J, radius r) on the side of `side` (a direction from J; only its component in
 // the plane of O, I, J counts). The path is the geodesic, in the plane of O, I and J, where the bend at J is
-// larger than the sphere's angular radius r / min(|O - J|, |I - J|) (at most 0.1); within that band `side` draws
-// the plane towards itself, and fixes it alone when O, I, J are collinear (action_path.cpp). Straight when the line O-I clears the
-// sphere on that side. When O or I lie inside the sphere the radius used shrinks to
-// 0.999 of their distance to J (documented fallback; the path stays continuous and finite).
+// larger than the sphere's angular radius r / min(|O - J|, |I - J|) (at most 0.1); within that band `side`
+// draws the plane towards itself, and fixes it alone when O, I, J are collinear (action_path.cpp). Straight
+// when the line O-I clears the sphere on that side. When O or I lie inside the sphere the radius used shrinks
+// to 0.999 of their distance to J (documented fallback; the path stays continuous and finite).
 void jointWrapPath(const Vec3& O, const Vec3& I, const Vec3& J, double r, const Vec3& side, ActionPath& path);
 
 // Around the infinite cylinder through axisOrigin along unit `axis` (e1, e2 complete a right-handed
