@@ -210,8 +210,8 @@ struct ChainFilterOptions {
 // MakeHuman and Godot bodies): a smaller one is a value in metres given where limb radii are taken.
 constexpr double kMinSpacingRadii = 0.05;
 
-// Body scale (stage 0, makeScaleContext): the power of ten the character is scaled by for the analysis, and the
-// plane spacing in limb radii.
+// Body scale (stage 0, makeScaleContext): the power of ten (or, continuous, the factor) the character is scaled by for
+// the analysis, and the plane spacing in limb radii.
 
 struct BodyScaleOptions {
   double spacing = 0.0;                        // cutting-plane spacing in limb radii (bodyLimbRadius; 2 = a limb's
@@ -225,6 +225,11 @@ struct BodyScaleOptions {
                                                // and the muscles scaled back, so the same character in mm, cm, m or
                                                // exported x100 / x0.01 gives the same muscles. 0 = kReferenceLimbRadius;
                                                // < 0 = analyse in the file's own units
+  bool continuous = false;                     // true: scale the character to the reference limb radius exactly instead of
+                                               // by a power of ten, so every length of the defaults is relative to the
+                                               // limb radius and any scale (feet, inches, a character modelled 1.7 units
+                                               // tall) gives the same muscles. Not the default: at their own size the
+                                               // bodies the floors were measured on change (README "Units and placement")
 };
 
 // Every option of the pipeline, stage by stage: the expert object (expertOptions()). The user-facing few, each
@@ -289,7 +294,8 @@ struct ChainRecord {
 
 struct ExtractionReport {
   double limbRadius = 0.0;            // the body's limb radius in the character's units (bodyLimbRadius)
-  double scale = 1.0;                 // factor the character was scaled by for the analysis (a power of ten: its units)
+  double scale = 1.0;                 // factor the character was scaled by for the analysis (a power of ten: its units; any
+                                      // factor with scale.continuous)
   std::vector<ExcludedComponent> excluded;  // skin components left out of the analysis (eyes, teeth, props)
   std::string diagnosis;              // when no muscle was found: why (no limb chain, every section skipped and
                                       // why, or no significant relief); empty otherwise

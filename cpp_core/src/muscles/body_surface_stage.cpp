@@ -14,11 +14,14 @@ namespace myoskin::stages {
 
 ScaleContext makeScaleContext(const Character& body, const std::vector<BoneRole>& roles,
                               const BodyScaleOptions& options, double spacing) {
-  // The character's units are found from its limb radius (the power of ten that brings it nearest the reference).
+  // The character's units are found from its limb radius: the power of ten that brings it nearest the reference, or
+  // (continuous) the factor that brings it there exactly.
   ScaleContext s;
   s.limbRadius = bodyLimbRadius(body, roles);
   const double reference = options.referenceLimbRadius == 0 ? kReferenceLimbRadius : options.referenceLimbRadius;
-  s.factor = reference > 0 && s.limbRadius > 0 ? std::pow(10.0, std::round(std::log10(reference / s.limbRadius))) : 1.0;
+  if (reference > 0 && s.limbRadius > 0)
+    s.factor = options.continuous ? reference / s.limbRadius
+                                  : std::pow(10.0, std::round(std::log10(reference / s.limbRadius)));
   if (options.spacing > 0) spacing = options.spacing * s.limbRadius;  // limb radii -> the character's units
   s.planeSpacing = spacing * s.factor;
   return s;

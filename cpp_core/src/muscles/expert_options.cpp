@@ -83,6 +83,7 @@ const std::vector<ExpertField>& expertFields() {
     MYOSKIN_DOUBLE(filters.spindleSteepness),
     MYOSKIN_DOUBLE(filters.twinReach),
     MYOSKIN_DOUBLE(scale.referenceLimbRadius),
+    MYOSKIN_BOOL(scale.continuous),
   };
   return table;
 }
