@@ -43,6 +43,7 @@ def test_extra_fields_are_allowed(core):
 
 @pytest.mark.parametrize("edit, message", [
     (lambda d: d.__setitem__("format", "other"), "format"),
+    (lambda d: d.__setitem__("format", 111111111111100043064661329824513), "format"),  # found by fuzz_muscles_json
     (lambda d: d.__setitem__("version", 2), "version"),
     (lambda d: d["muscles"][0].pop("root_curve"), "root_curve"),
     (lambda d: d["muscles"][0]["sections"][1].__setitem__("u", 3.0), "u outside"),

@@ -134,7 +134,8 @@ std::vector<Muscle> musclesFromJson(const std::string& text) {
   } catch (const json::exception& e) {
     throw InputError(std::string("muscles JSON: not valid JSON (") + e.what() + ")");
   }
-  if (!doc.is_object() || doc.value("format", std::string()) != "myoskin.muscles")
+  if (!doc.is_object() || !doc.contains("format") || !doc["format"].is_string() ||
+      doc["format"].get<std::string>() != "myoskin.muscles")
     throw InputError("muscles JSON: \"format\" must be \"myoskin.muscles\"");
   if (!doc.contains("version") || !doc["version"].is_number_integer() || doc["version"].get<int>() != 1)
     throw InputError("muscles JSON: unsupported \"version\" (this build reads version 1)");
