@@ -333,6 +333,7 @@ int cmdExtract(const Args& args) {
               "%.2f s) -> %s\n",
               r.report.muscles, regions.size(), c.name.c_str(), r.report.planes, r.report.sections,
               r.report.skipped.size(), r.report.bumps, r.report.limbRadius, seconds, args.options.at("--output").c_str());
+  if (!r.report.scaleNote.empty()) std::printf("note: %s\n", r.report.scaleNote.c_str());
   return 0;
 }
 

@@ -48,6 +48,7 @@ py::dict reportToDict(const ExtractionReport& r) {
   d["scale"] = r.scale;
   d["analysed"] = r.analysed;
   d["diagnosis"] = r.diagnosis;
+  d["scale_note"] = r.scaleNote;
   py::list excluded;
   for (const ExcludedComponent& c : r.excluded) {
     py::dict e;

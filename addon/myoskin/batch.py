@@ -348,6 +348,8 @@ def main(argv):
             log(f"left out {line}")
         if not len(state.muscles):
             log(f"found no muscles: {done.get('diagnosis') or 'no significant relief'}")
+        if done.get("scale_note"):
+            log(f"note: {done['scale_note']}")
     if args.bind:
         if args.deformer:
             state.deformer = args.deformer.upper()

@@ -6,6 +6,7 @@
     blender -b --factory-startup --python-exit-code 1 --addons myoskin --python tests/blender/test_batch.py
 """
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -295,6 +296,13 @@ def test_batch_extraction_options():
         json.dump({"filters.minEvidence": 1000, "filters.spindleEnds": 0}, f)
     code, log = batch("extract", "--options", options, "--expert", "filters.minEvidence=6.6", blend=src)
     assert code == 0 and "found no muscles" not in log and "extracted " in log, log
+    # A reference limb radius half the arm's: the body is analysed at twice the size the defaults are stated for, and
+    # the log says so (the operator's message too: a WARNING).
+    code, log = batch("extract", "--expert", "scale.referenceLimbRadius=0.02", blend=src)
+    assert code == 0 and re.search(r"note: limb radius .* times the 0\.02 m .*scale\.continuous", log), log
+    code, log = batch("extract", "--expert", "scale.referenceLimbRadius=0.02", "--expert", "scale.continuous=1",
+                      blend=src)
+    assert code == 0 and "note:" not in log and "extracted " in log, log
     for bad, message in ((["--expert", "nope=1"], "unknown expert extraction option 'nope'"),
                          (["--expert", "filters.minEvidence"], "--expert needs KEY=VALUE"),
                          (["--joint-wrap", "-1"], "--joint-wrap and --max-per-region must be >= 0")):

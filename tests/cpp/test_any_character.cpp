@@ -155,6 +155,32 @@ TEST(AnyCharacter, ContinuousScaleGivesTheSameMusclesAtAnyScale) {
   EXPECT_EQ(characters, 3);
 }
 
+// With the power-of-ten units a body far from the size the defaults are stated for is analysed at that size: the report
+// says so and names scale.continuous; near it (MakeHuman, the soldier at 1.28 times) and in continuous mode it says
+// nothing.
+TEST(AnyCharacter, SaysWhenTheBodyIsFarFromTheReferenceSize) {
+  const std::string path = test::sharedPath("characters/makehuman_muscular_male/makehuman_muscular_male.glb");
+  const std::string soldierPath = test::sharedPath("characters/quaternius_woman_soldier/woman_soldier.glb");
+  MYOSKIN_REQUIRE_SHARED(path);
+  MYOSKIN_REQUIRE_SHARED(soldierPath);
+  const Character c = loadCharacter(path);
+  ExtractionOptions o;
+  o.buildSurfaces = false;
+  EXPECT_EQ(extractMuscles(c, o).report.scaleNote, "");
+  EXPECT_EQ(extractMuscles(loadCharacter(soldierPath), o).report.scaleNote, "");
+  Similarity feet;
+  feet.scale = 3.2808;  // analysed as a tenth of that: limb radius 0.018 m
+  const std::string note = extractMuscles(transformed(c, feet), o).report.scaleNote;
+  std::printf("MakeHuman in feet: %s\n", note.c_str());
+  EXPECT_NE(note.find("0.33 times"), std::string::npos) << note;
+  EXPECT_NE(note.find("scale.continuous"), std::string::npos) << note;
+  Similarity doubled;
+  doubled.scale = 2.0;
+  EXPECT_NE(extractMuscles(transformed(c, doubled), o).report.scaleNote.find("2.00 times"), std::string::npos);
+  o.scale.continuous = true;
+  EXPECT_EQ(extractMuscles(transformed(c, feet), o).report.scaleNote, "");
+}
+
 // ============================================================================
 // Several meshes
 // ============================================================================

@@ -75,6 +75,17 @@ def test_extract_expert_options(tmp_path):
         assert r.returncode != 0 and message in r.stderr, (bad, r.stderr)
 
 
+def test_extract_notes_a_body_far_from_the_reference_size(tmp_path):
+    """The horse's limbs are 2.5 times the reference limb radius: extract says its muscles depend on its size and
+    names scale.continuous, which analyses it at the reference size and says nothing."""
+    horse = shared("characters/quaternius_horse/horse.glb")
+    r = run_cli("extract", horse, "-o", str(tmp_path / "m.json"), "--no-surfaces")
+    assert r.returncode == 0, r.stderr
+    assert re.search(r"^note: limb radius 0\.138 m .* 2\.50 times .*scale\.continuous", r.stdout, re.M), r.stdout
+    r = run_cli("extract", horse, "-o", str(tmp_path / "m.json"), "--no-surfaces", "--expert", "scale.continuous=1")
+    assert r.returncode == 0 and "note:" not in r.stdout and len(json.load(open(tmp_path / "m.json"))["muscles"]) > 0
+
+
 def test_extract_spacing_in_limb_radii(tmp_path):
     """--spacing is in limb radii: half the spacing cuts twice the planes; a value in metres is refused."""
     r = run_cli("generate", "arm", "-o", str(tmp_path), "--seed", "1")

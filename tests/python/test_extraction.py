@@ -208,6 +208,7 @@ def test_bone_roles_and_the_report_say_what_was_analysed(core, arm):
     muscles, report = core.extract_muscles(arm, build_surfaces=False)
     assert len(muscles) >= 5 and report["diagnosis"] == "" and report["analysed"]
     assert 0.03 < report["limb_radius"] < 0.06 and report["scale"] == 1.0 and report["excluded"] == []
+    assert report["scale_note"] == ""  # near the reference size (0.74-0.83 of it)
     # Overrides reach the core; with every bone ignored the report says why.
     off = {name: "ignore" for name in roles}
     assert set(core.bone_roles(arm, off).values()) == {"ignore"}

@@ -228,7 +228,8 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
                 bone_roles=overrides, options=expert_options(self.expert))
             left_out = left_out_lines(combined, report.get("excluded", []))
             last_extraction[arm.name] = {"muscles": len(muscles), "analysed": report["analysed"],
-                                         "diagnosis": report["diagnosis"], "left_out": left_out}
+                                         "diagnosis": report["diagnosis"], "left_out": left_out,
+                                         "scale_note": report.get("scale_note", "")}
             if not report["analysed"]:  # nothing changed in the file: say why
                 hint = ""
                 if report["diagnosis"].startswith("no limb chain"):
@@ -259,8 +260,11 @@ class MYOSKIN_OT_extract_muscles(_MuscleOperator, bpy.types.Operator):
         if left_out:
             message += "; left out " + "; ".join(left_out)
         message += blender_io.skipped_message(skipped)
+        note = last_extraction[arm.name]["scale_note"]
+        if note:  # the body is far from the size the defaults are stated for
+            message += f"; note: {note}"
         last_extraction[arm.name]["message"] = message
-        return ('INFO' if muscles else 'WARNING'), message
+        return ('INFO' if muscles and not note else 'WARNING'), message
 
 
 class MYOSKIN_OT_detect_bone_roles(_MuscleOperator, bpy.types.Operator):

@@ -297,6 +297,11 @@ struct ExtractionReport {
   double scale = 1.0;                 // factor the character was scaled by for the analysis (a power of ten: its units; any
                                       // factor with scale.continuous)
   std::vector<ExcludedComponent> excluded;  // skin components left out of the analysis (eyes, teeth, props)
+  std::string scaleNote;              // when the body, in the units found (a power of ten), is far from the size the defaults
+                                      // are stated for (limb radius outside 2/3 to 1.5 times kReferenceLimbRadius: the
+                                      // bodies they were measured on span 0.74-1.37; a character in feet or inches, or
+                                      // twice life size): its muscles depend on its size, and scale.continuous removes
+                                      // that; empty otherwise (and with scale.continuous)
   std::string diagnosis;              // when no muscle was found: why (no limb chain, every section skipped and
                                       // why, or no significant relief); empty otherwise
   bool analysed = false;              // at least one section was analysed (false: nothing could be looked at)

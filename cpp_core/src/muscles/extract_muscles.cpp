@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <map>
 
 #include "muscles/extraction_stages.h"
@@ -99,6 +100,25 @@ void validateExtraction(const Character& character, const ExtractionOptions& opt
 // One-shot pipeline: body surface and scale, then the stages
 // ============================================================================
 
+namespace {
+
+// Why the muscles of a body far from the reference size depend on its size (ExtractionReport::scaleNote); empty near it.
+std::string scaleNote(const stages::ScaleContext& scale, const BodyScaleOptions& options) {
+  const double reference = options.referenceLimbRadius == 0 ? kReferenceLimbRadius : options.referenceLimbRadius;
+  if (options.continuous || !(reference > 0) || !(scale.limbRadius > 0)) return "";
+  const double ratio = scale.limbRadius * scale.factor / reference;
+  if (ratio >= 2.0 / 3.0 && ratio <= 1.5) return "";
+  char text[320];
+  std::snprintf(text, sizeof text,
+                "limb radius %.3g m in the units found (%.4g in the character's own) is %.2f times the %.3g m the defaults "
+                "are stated for: the muscles found depend on the body's size (a character in feet or inches, or far from "
+                "life size); the expert option scale.continuous analyses it at the reference size",
+                scale.limbRadius * scale.factor, scale.limbRadius, ratio, reference);
+  return text;
+}
+
+}  // namespace
+
 ExtractionResult extractMuscles(const Character& character, const ExtractionOptions& options) {
   using Clock = std::chrono::steady_clock;
   using stages::secondsSince;
@@ -162,6 +182,7 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
   }
   rep.limbRadius = scale.limbRadius;
   rep.scale = factor;
+  rep.scaleNote = scaleNote(scale, options.scale);
   rep.excluded = surface.excluded;
   rep.analysed = rep.sections > 0;
   if (result.muscles.empty()) rep.diagnosis = diagnose(rep);
