@@ -181,8 +181,9 @@ void bindExtraction(py::module_& m) {
       "default. The old expert keywords (min_relative, weak_fraction, min_evidence, twin_reach, ...) raise a "
       "TypeError naming their key. Bad values raise ValueError. Returns (muscles, report) where report has per-stage "
       "counts, skipped sections with reasons, timings per stage (seconds), limb_radius and scale (the body scale), "
-      "excluded (skin components left out: small or rigidly bound), analysed (any section looked at) and diagnosis "
-      "(why nothing was found, else empty).");
+      "excluded (skin components left out: small or rigidly bound), analysed (any section looked at), diagnosis "
+      "(why nothing was found, else empty) and scale_note (why the muscles depend on the body's size when it is far "
+      "from the size the defaults are stated for, else empty).");
 
   m.def(
       "extraction_options",
