@@ -122,7 +122,8 @@ TEST(AnyCharacter, SameMusclesInAnyUnitsAndPlacement) {
 // woman soldier 26 at x1, 2 at x2.54.
 TEST(AnyCharacter, ContinuousScaleGivesTheSameMusclesAtAnyScale) {
   const char* files[] = {"characters/makehuman_muscular_male/makehuman_muscular_male.glb",
-                         "characters/quaternius_woman_soldier/woman_soldier.glb", "characters/quaternius_horse/horse.glb"};
+                         "characters/quaternius_woman_soldier/woman_soldier.glb", "characters/quaternius_horse/horse.glb",
+                         "characters/godot_male_base_mesh_lowpoly/male_base_mesh.glb"};
   ExtractionOptions options;
   options.scale.continuous = true;
   int characters = 0;
@@ -131,9 +132,9 @@ TEST(AnyCharacter, ContinuousScaleGivesTheSameMusclesAtAnyScale) {
     MYOSKIN_REQUIRE_SHARED(path);
     const Character c = loadCharacter(path);
     const ExtractionResult base = extractMuscles(c, options);
-    ASSERT_GE(base.muscles.size(), 10u) << file;
+    ASSERT_GE(base.muscles.size(), 6u) << file;
     const double tolerance = 0.01 * base.report.limbRadius;
-    for (double scale : {0.37, 3.2808, 39.37}) {  // a small stylised figure, feet, inches
+    for (double scale : {0.37, 1.5, 3.2808, 39.37}) {  // a small stylised figure, larger than life, feet, inches
       Similarity x;
       x.scale = scale;
       const ExtractionResult r = extractMuscles(transformed(c, x), options);
@@ -147,12 +148,13 @@ TEST(AnyCharacter, ContinuousScaleGivesTheSameMusclesAtAnyScale) {
       std::printf("%s x%g: %zu muscles, root curves within %.2e of x1 (limb radius %.4f)\n", file, scale,
                   r.muscles.size(), worst, base.report.limbRadius);
       // As under a change of units (SameMusclesInAnyUnitsAndPlacement): round-off can tip a section's ellipse fit by a
-      // 7 % step (measured: 3.0 mm on MakeHuman in feet, 1.2 mm on the soldier; identical on the horse).
+      // 7 % step (measured: 3.0 mm on MakeHuman in feet, 1.2 mm on the soldier; identical on the horse). The low-poly
+      // body lost a muscle pair at x1.5 until a belly fit's cut took points at it within round-off (ellipse_fit.cpp).
       EXPECT_LE(worst, 10 * tolerance) << file << " x" << scale;
     }
     ++characters;
   }
-  EXPECT_EQ(characters, 3);
+  EXPECT_EQ(characters, 4);
 }
 
 // With the power-of-ten units a body far from the size the defaults are stated for is analysed at that size: the report

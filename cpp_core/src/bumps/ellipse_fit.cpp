@@ -90,10 +90,12 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
   const Vec2 v(u.y(), -u.x());
   const Vec2 apex = arc[apexAt];
   // The belly: the run of the arc around the apex standing at least 35 % of the apex's height above the
-  // chord (wide, shallow flanks say little about the muscle under the bump).
+  // chord (wide, shallow flanks say little about the muscle under the bump). A point at the cut itself is in it,
+  // within round-off: a flat facet resampled evenly puts points exactly there (the low-poly body's thigh, where
+  // scaling the character by 1.5 moved one across the cut and dropped a muscle pair).
   std::vector<double> height(arc.size());
   for (size_t i = 0; i < arc.size(); ++i) height[i] = (arc[i] - arc.front()).dot(v);
-  const double cut = 0.35 * height[apexAt];
+  const double cut = 0.35 * height[apexAt] - 1e-9 * std::abs(height[apexAt]);
   size_t lo = apexAt, hi = apexAt;
   while (lo > 0 && height[lo - 1] >= cut) --lo;
   while (hi + 1 < arc.size() && height[hi + 1] >= cut) ++hi;
