@@ -32,11 +32,13 @@ size_t count(const Character& c, bool continuous, double reference = 0.0) {
 
 int main() {
   const std::string shared = MYOSKIN_SHARED_DIR;
-  const char* files[] = {"makehuman_muscular_male/makehuman_muscular_male.glb", "makehuman_neutral/makehuman_neutral.glb",
+  const char* files[] = {"makehuman_muscular_male/makehuman_muscular_male.glb",
+                         "makehuman_neutral/makehuman_neutral.glb",
                          "quaternius_woman_soldier/woman_soldier.glb", "quaternius_horse/horse.glb",
                          "godot_male_base_mesh_lowpoly/male_base_mesh.glb"};
   const double scales[] = {0.3, 0.5, 0.7, 1.0, 1.5, 2.0, 2.54, 3.2808, 5.0};
-  std::printf("muscles per scale (x1 is the baseline); units = default power-of-ten detection, continuous = scale.continuous\n");
+  std::printf("muscles per scale (x1 is the baseline); units = default power-of-ten detection, continuous = "
+              "scale.continuous\n");
   for (const char* file : files) {
     Character c;
     try {

@@ -300,9 +300,11 @@ def test_batch_extraction_options():
     # the log says so (the operator's message too: a WARNING).
     code, log = batch("extract", "--expert", "scale.referenceLimbRadius=0.02", blend=src)
     assert code == 0 and re.search(r"note: limb radius .* times the 0\.02 m .*scale\.continuous", log), log
+    assert re.search(r"^Warning: Extracted \d+ muscles .*; note: limb radius", log, re.M), log  # the operator
     code, log = batch("extract", "--expert", "scale.referenceLimbRadius=0.02", "--expert", "scale.continuous=1",
                       blend=src)
-    assert code == 0 and "note:" not in log and "extracted " in log, log
+    assert code == 0 and "note:" not in log and "found no muscles" not in log, log
+    assert int(re.search(r"extracted (\d+) muscles", log).group(1)) > 0, log
     for bad, message in ((["--expert", "nope=1"], "unknown expert extraction option 'nope'"),
                          (["--expert", "filters.minEvidence"], "--expert needs KEY=VALUE"),
                          (["--joint-wrap", "-1"], "--joint-wrap and --max-per-region must be >= 0")):

@@ -122,7 +122,8 @@ TEST(AnyCharacter, SameMusclesInAnyUnitsAndPlacement) {
 // woman soldier 26 at x1, 2 at x2.54.
 TEST(AnyCharacter, ContinuousScaleGivesTheSameMusclesAtAnyScale) {
   const char* files[] = {"characters/makehuman_muscular_male/makehuman_muscular_male.glb",
-                         "characters/quaternius_woman_soldier/woman_soldier.glb", "characters/quaternius_horse/horse.glb",
+                         "characters/quaternius_woman_soldier/woman_soldier.glb",
+                         "characters/quaternius_horse/horse.glb",
                          "characters/godot_male_base_mesh_lowpoly/male_base_mesh.glb"};
   ExtractionOptions options;
   options.scale.continuous = true;

@@ -81,7 +81,7 @@ def test_extract_notes_a_body_far_from_the_reference_size(tmp_path):
     horse = shared("characters/quaternius_horse/horse.glb")
     r = run_cli("extract", horse, "-o", str(tmp_path / "m.json"), "--no-surfaces")
     assert r.returncode == 0, r.stderr
-    assert re.search(r"^note: limb radius 0\.138 m .* 2\.50 times .*scale\.continuous", r.stdout, re.M), r.stdout
+    assert re.search(r"^note: limb radius .* 2\.\d\d times .*scale\.continuous", r.stdout, re.M), r.stdout
     r = run_cli("extract", horse, "-o", str(tmp_path / "m.json"), "--no-surfaces", "--expert", "scale.continuous=1")
     assert r.returncode == 0 and "note:" not in r.stdout and len(json.load(open(tmp_path / "m.json"))["muscles"]) > 0
 

@@ -349,6 +349,17 @@ def test_extract_muscles_has_five_documented_user_facing_options(core):
     assert not {"filters.minConfidence", "link.minSections", "ends.jointWrapFraction", "scale.spacing"} & set(expert)
 
 
+def test_continuous_scale_reaches_the_core(core):
+    """options={"scale.continuous": True}: the body is analysed at the reference limb radius exactly (the horse, 2.5
+    times it: the default report notes that, the continuous one does not)."""
+    horse = core.load_character(shared("characters/quaternius_horse/horse.glb"))
+    default, report = core.extract_muscles(horse, build_surfaces=False)
+    muscles, continuous = core.extract_muscles(horse, build_surfaces=False, options={"scale.continuous": True})
+    assert report["scale"] == 1.0 and "scale.continuous" in report["scale_note"]
+    assert abs(continuous["scale"] * continuous["limb_radius"] - 0.0554) < 1e-12 and continuous["scale_note"] == ""
+    assert len(default) > 0 and len(muscles) > 0
+
+
 def test_expert_options_reach_the_core(core):
     """An expert override changes the result on a real character; passing every default changes nothing."""
     character = core.load_character(shared(MUSCULAR))

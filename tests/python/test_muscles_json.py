@@ -45,6 +45,7 @@ def test_extra_fields_are_allowed(core):
     (lambda d: d.__setitem__("format", "other"), "format"),
     (lambda d: d.__setitem__("format", 111111111111100043064661329824513), "format"),  # found by fuzz_muscles_json
     (lambda d: d.__setitem__("version", 2), "version"),
+    (lambda d: d.__setitem__("version", 2**32 + 1), "version"),  # not read as 1 through an int
     (lambda d: d["muscles"][0].pop("root_curve"), "root_curve"),
     (lambda d: d["muscles"][0]["sections"][1].__setitem__("u", 3.0), "u outside"),
     (lambda d: d["muscles"][0]["sections"][1].__setitem__("a", -1.0), "positive"),

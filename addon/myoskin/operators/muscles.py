@@ -14,7 +14,8 @@ from ..state import (LIMITS, clear_role_overrides, missing_role_bones, rig_skins
                      set_detected_roles, set_rig_skins)
 
 # The last Extract per armature name: {"muscles", "diagnosis", "analysed", "left_out" (lines naming the skin
-# components left out of the analysis), "message"} (batch prints it; the operator's report says the same).
+# components left out of the analysis), "scale_note" (the body is far from the reference size), "message"} (batch
+# prints it; the operator's report says the same).
 last_extraction = {}
 
 

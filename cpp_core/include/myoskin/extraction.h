@@ -210,26 +210,28 @@ struct ChainFilterOptions {
 // MakeHuman and Godot bodies): a smaller one is a value in metres given where limb radii are taken.
 constexpr double kMinSpacingRadii = 0.05;
 
-// Body scale (stage 0, makeScaleContext): the power of ten (or, continuous, the factor) the character is scaled by for
-// the analysis, and the plane spacing in limb radii.
+// Body scale (stage 0, makeScaleContext): the power of ten (or, continuous, the factor) the character is scaled by
+// for the analysis, and the plane spacing in limb radii.
 
 struct BodyScaleOptions {
   double spacing = 0.0;                        // cutting-plane spacing in limb radii (bodyLimbRadius; 2 = a limb's
                                                // diameter); 0 = planes.spacing (in the character's units), which
                                                // itself 0 = automatic (1/80 of the skin's largest extent)
-  double referenceLimbRadius = 0.0;            // body scale: the defaults' lengths (every one but planes.spacing, which is
-                                               // in the character's own units, and the stages' inner tolerances) hold for
-                                               // a character in metres. Its units are found from its limb radius
-                                               // (bodyLimbRadius): the power of ten that brings that nearest to this
-                                               // radius; the character is scaled by it about the origin for the analysis
-                                               // and the muscles scaled back, so the same character in mm, cm, m or
-                                               // exported x100 / x0.01 gives the same muscles. 0 = kReferenceLimbRadius;
-                                               // < 0 = analyse in the file's own units
-  bool continuous = false;                     // true: scale the character to the reference limb radius exactly instead of
+  double referenceLimbRadius = 0.0;            // body scale: the defaults' lengths (every one but planes.spacing,
+                                               // which is in the character's own units, and the stages' inner
+                                               // tolerances) hold for a character in metres. Its units are found from
+                                               // its limb radius (bodyLimbRadius): the power of ten that brings that
+                                               // nearest to this radius (exactly to it with `continuous`); the
+                                               // character is scaled by it about the origin for the analysis and the
+                                               // muscles scaled back, so the same character in mm, cm, m or exported
+                                               // x100 / x0.01 gives the same muscles. 0 = kReferenceLimbRadius; < 0 =
+                                               // analyse in the file's own units (`continuous` then does nothing)
+  bool continuous = false;                     // true: scale the character to the reference limb radius exactly, not
                                                // by a power of ten, so every length of the defaults is relative to the
-                                               // limb radius and any scale (feet, inches, a character modelled 1.7 units
-                                               // tall) gives the same muscles. Not the default: at their own size the
-                                               // bodies the floors were measured on change (README "Units and placement")
+                                               // limb radius and any scale (feet, inches, a character modelled 1.7
+                                               // units tall) gives the same muscles. Not the default: at their own size
+                                               // the bodies the floors were measured on change (README "Units and
+                                               // placement")
 };
 
 // Every option of the pipeline, stage by stage: the expert object (expertOptions()). The user-facing few, each
@@ -294,14 +296,15 @@ struct ChainRecord {
 
 struct ExtractionReport {
   double limbRadius = 0.0;            // the body's limb radius in the character's units (bodyLimbRadius)
-  double scale = 1.0;                 // factor the character was scaled by for the analysis (a power of ten: its units; any
-                                      // factor with scale.continuous)
+  double scale = 1.0;                 // factor the character was scaled by for the analysis (a power of ten: its
+                                      // units; any factor with scale.continuous)
   std::vector<ExcludedComponent> excluded;  // skin components left out of the analysis (eyes, teeth, props)
-  std::string scaleNote;              // when the body, in the units found (a power of ten), is far from the size the defaults
-                                      // are stated for (limb radius outside 2/3 to 1.5 times kReferenceLimbRadius: the
-                                      // bodies they were measured on span 0.74-1.37; a character in feet or inches, or
+  std::string scaleNote;              // when the body, in the units found, is far from the size the defaults are stated
+                                      // for (limb radius outside 2/3 to 1.5 times the reference limb radius; the bodies
+                                      // they were measured on span 0.74-1.37 of it; a character in feet or inches, or
                                       // twice life size): its muscles depend on its size, and scale.continuous removes
-                                      // that; empty otherwise (and with scale.continuous)
+                                      // that. Empty otherwise, with scale.continuous or a reference < 0, and when no
+                                      // limb was analysed (the limb radius is then a fallback)
   std::string diagnosis;              // when no muscle was found: why (no limb chain, every section skipped and
                                       // why, or no significant relief); empty otherwise
   bool analysed = false;              // at least one section was analysed (false: nothing could be looked at)
@@ -364,7 +367,8 @@ double expertOption(const ExtractionOptions& options, const std::string& key);
 
 // The limb radius of a character in metres that the units detection aims at (makehuman_muscular_male's, on which
 // the defaults were measured; the neutral body's is 0.049, the synthetic arm's 0.041-0.044, the low-poly male's 0.060,
-// the soldier's 0.071): a limb radius from 1.75 cm to 17.5 cm is taken as metres.
+// the soldier's 0.071): a limb radius from 1.75 cm to 17.5 cm is taken as metres (BodyScaleOptions::continuous: every
+// limb radius is brought to it exactly).
 constexpr double kReferenceLimbRadius = 0.0554;
 
 // The body's limb radius: the median distance of the skin on limb bones (roles[b] == Limb, by each vertex's

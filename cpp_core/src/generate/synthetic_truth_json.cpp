@@ -110,7 +110,7 @@ std::vector<TrueMuscle> trueMusclesFromJson(const std::string& text) {
   if (!format.is_string() || format.get<std::string>() != kFormat)
     throw InputError(std::string("true muscles JSON: format must be \"") + kFormat + "\"");
   const json& version = member(j, "version", "document");
-  if (!version.is_number_integer() || version.get<int>() != kVersion)
+  if (!version.is_number_integer() || version.get<int64_t>() != kVersion)
     throw InputError("true muscles JSON: unsupported version (expected 1)");
   const json& list = member(j, "muscles", "document");
   if (!list.is_array()) throw InputError("true muscles JSON: \"muscles\" must be an array");

@@ -137,7 +137,7 @@ std::vector<Muscle> musclesFromJson(const std::string& text) {
   if (!doc.is_object() || !doc.contains("format") || !doc["format"].is_string() ||
       doc["format"].get<std::string>() != "myoskin.muscles")
     throw InputError("muscles JSON: \"format\" must be \"myoskin.muscles\"");
-  if (!doc.contains("version") || !doc["version"].is_number_integer() || doc["version"].get<int>() != 1)
+  if (!doc.contains("version") || !doc["version"].is_number_integer() || doc["version"].get<int64_t>() != 1)
     throw InputError("muscles JSON: unsupported \"version\" (this build reads version 1)");
   const json& list = field(doc, "muscles", "document");
   if (!list.is_array()) throw InputError("muscles JSON: \"muscles\" must be an array");

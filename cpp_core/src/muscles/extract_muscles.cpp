@@ -102,19 +102,25 @@ void validateExtraction(const Character& character, const ExtractionOptions& opt
 
 namespace {
 
-// Why the muscles of a body far from the reference size depend on its size (ExtractionReport::scaleNote); empty near it.
-std::string scaleNote(const stages::ScaleContext& scale, const BodyScaleOptions& options) {
+// Why the muscles of a body far from the reference size depend on its size (ExtractionReport::scaleNote); empty near
+// it, in continuous mode, and when no limb was analysed (the limb radius is then a fallback, and the roles the cause).
+std::string scaleNote(const stages::ScaleContext& scale, const BodyScaleOptions& options,
+                      const std::vector<BoneRole>& roles, bool analysed) {
   const double reference = options.referenceLimbRadius == 0 ? kReferenceLimbRadius : options.referenceLimbRadius;
-  if (options.continuous || !(reference > 0) || !(scale.limbRadius > 0)) return "";
+  const bool limbs = std::find(roles.begin(), roles.end(), BoneRole::Limb) != roles.end();
+  if (options.continuous || !analysed || !limbs || !(reference > 0) || !(scale.limbRadius > 0)) return "";
   const double ratio = scale.limbRadius * scale.factor / reference;
   if (ratio >= 2.0 / 3.0 && ratio <= 1.5) return "";
-  char text[320];
-  std::snprintf(text, sizeof text,
-                "limb radius %.3g m in the units found (%.4g in the character's own) is %.2f times the %.3g m the defaults "
-                "are stated for: the muscles found depend on the body's size (a character in feet or inches, or far from "
-                "life size); the expert option scale.continuous analyses it at the reference size",
-                scale.limbRadius * scale.factor, scale.limbRadius, ratio, reference);
-  return text;
+  auto number = [](const char* format, double x) {
+    char text[32];
+    std::snprintf(text, sizeof text, format, x);
+    return std::string(text);
+  };
+  return "limb radius " + number("%.3g", scale.limbRadius * scale.factor) + " m in the units found (" +
+         number("%.4g", scale.limbRadius) + " in the character's own) is " + number("%.2f", ratio) + " times the " +
+         number("%.3g", reference) + " m the defaults are stated for: the muscles found depend on the body's size (a " +
+         "character in feet or inches, or far from life size); the expert option scale.continuous analyses it at the "
+         "reference size";
 }
 
 }  // namespace
@@ -182,9 +188,9 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
   }
   rep.limbRadius = scale.limbRadius;
   rep.scale = factor;
-  rep.scaleNote = scaleNote(scale, options.scale);
   rep.excluded = surface.excluded;
   rep.analysed = rep.sections > 0;
+  rep.scaleNote = scaleNote(scale, options.scale, surface.roles, rep.analysed);
   if (result.muscles.empty()) rep.diagnosis = diagnose(rep);
   return result;
 }
