@@ -18,10 +18,10 @@ ScaleContext makeScaleContext(const Character& body, const std::vector<BoneRole>
   // (continuous) the factor that brings it there exactly.
   ScaleContext s;
   s.limbRadius = bodyLimbRadius(body, roles);
-  const double reference = options.referenceLimbRadius == 0 ? kReferenceLimbRadius : options.referenceLimbRadius;
-  if (reference > 0 && s.limbRadius > 0)
-    s.factor = options.continuous ? reference / s.limbRadius
-                                  : std::pow(10.0, std::round(std::log10(reference / s.limbRadius)));
+  s.reference = options.referenceLimbRadius == 0 ? kReferenceLimbRadius : options.referenceLimbRadius;
+  if (s.reference > 0 && s.limbRadius > 0)
+    s.factor = options.continuous ? s.reference / s.limbRadius
+                                  : std::pow(10.0, std::round(std::log10(s.reference / s.limbRadius)));
   if (options.spacing > 0) spacing = options.spacing * s.limbRadius;  // limb radii -> the character's units
   s.planeSpacing = spacing * s.factor;
   return s;

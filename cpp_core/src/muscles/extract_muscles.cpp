@@ -106,7 +106,7 @@ namespace {
 // it, in continuous mode, and when no limb was analysed (the limb radius is then a fallback, and the roles the cause).
 std::string scaleNote(const stages::ScaleContext& scale, const BodyScaleOptions& options,
                       const std::vector<BoneRole>& roles, bool analysed) {
-  const double reference = options.referenceLimbRadius == 0 ? kReferenceLimbRadius : options.referenceLimbRadius;
+  const double reference = scale.reference;
   const bool limbs = std::find(roles.begin(), roles.end(), BoneRole::Limb) != roles.end();
   if (options.continuous || !analysed || !limbs || !(reference > 0) || !(scale.limbRadius > 0)) return "";
   const double ratio = scale.limbRadius * scale.factor / reference;

@@ -19,6 +19,8 @@ namespace myoskin::stages {
 // analysis units (the character times `factor`); limbRadius is in the character's own units (the report's).
 struct ScaleContext {
   double limbRadius = 0.0;      // the body's limb radius in the character's units (bodyLimbRadius)
+  double reference = 0.0;       // the limb radius (m) the defaults are stated for (BodyScaleOptions::
+                                // referenceLimbRadius, 0 there = kReferenceLimbRadius); < 0 = the file's own units
   double factor = 1.0;          // character units -> analysis units (a power of ten, or any with scale.continuous;
                                 // 1 when the reference is < 0)
   double planeSpacing = 0.0;    // requested plane spacing in analysis units (0 = automatic)
