@@ -3,8 +3,9 @@
 // quadruped), MakeHuman muscular and neutral at plane spacings x 0.9-1.1 and the shared characters at their defaults.
 // One line per character: its muscle count, matched true muscles, names, and a checksum of the root curves, so two runs
 // are compared with diff. Printed, never asserted; tune seeds only (held-out seeds are the tests').
-//   bench_floor_ablation [--seeds FIRST LAST] [--heldout] [--generated] [--records] [key=value ...]   (default seeds 1-11; keys: expertOptions(),
-//   and filters.minConfidence)
+//   bench_floor_ablation [--seeds FIRST LAST] [--heldout] [--generated] [--arms] [--records] [key=value ...]   (default
+//   seeds 1-11; keys: expertOptions(), and filters.minConfidence). --arms: the synthetic arms instead (seeds 0-11 at
+//   muscle scales 1, 0.2, 0.1 and 0: the arm tests' tuned and held-out seeds, faint and smooth arms).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -58,7 +59,7 @@ int main(int argc, char** argv) {
   unsigned first = 1, last = 11;
   ExtractionOptions base;
   base.buildSurfaces = false;
-  bool shared = true;
+  bool shared = true, arms = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--seeds" && i + 2 < argc) {
@@ -68,6 +69,8 @@ int main(int argc, char** argv) {
       first = 20, last = 27, shared = false;
     } else if (a == "--records") {
       records = true;
+    } else if (a == "--arms") {
+      arms = true;
     } else if (a == "--generated") {
       shared = false;
     } else {
@@ -81,6 +84,18 @@ int main(int argc, char** argv) {
       else
         setExpertOption(base, a.substr(0, eq), std::atof(a.c_str() + eq + 1));
     }
+  }
+  if (arms) {
+    for (double scale : {1.0, 0.2, 0.1, 0.0})
+      for (unsigned seed = 0; seed <= 11; ++seed) {
+        SyntheticArmOptions ao;
+        ao.seed = seed, ao.muscleScale = scale;
+        const SyntheticCharacter a = makeSyntheticArm(ao);
+        char set[64];
+        std::snprintf(set, sizeof set, "arm_%u_scale%.1f", seed, scale);
+        report(set, a.character, a.muscles, base);
+      }
+    return 0;
   }
   bench::forEachTuningBody(first, last, base, report);
   if (!shared) return 0;

@@ -46,7 +46,7 @@ TEST(Stages, EachStageAloneGivesTheOneShotResult) {
     EXPECT_LT(scale.meanEdgeLength, scale.limbRadius * scale.factor);  // the limb is resolved by its mesh
     EXPECT_EQ(scale.evidenceScale(), 1.0);                              // automatic spacing
     const stages::SectionCut cut = stages::cutBodySections(surface.body, scale, surface.roles, o.planes, o.profiles,
-                                                           surface.vertexMask, rep);
+                                                           o.bumps.minProtrusion, surface.vertexMask, rep);
     EXPECT_EQ(rep.planes, shot.report.planes);
     EXPECT_EQ(cut.profiles.size(), cut.planes.size());
     const stages::SectionBumpsResult found = stages::findSectionBumps(
@@ -58,7 +58,7 @@ TEST(Stages, EachStageAloneGivesTheOneShotResult) {
     EXPECT_EQ(rep.chains, shot.report.chains);
     const std::vector<MuscleChain> kept = stages::filterChains(std::move(chains), found.sections, cut,
                                                                surface.body.skeleton, scale, o.filters,
-                                                               o.link.minSections, rep);
+                                                               o.link.minSections, o.sectionBumps.weakFraction, rep);
     EXPECT_EQ(rep.droppedShort, shot.report.droppedShort);
     EXPECT_EQ(rep.droppedFlat, shot.report.droppedFlat);
     EXPECT_EQ(rep.droppedConfidence, shot.report.droppedConfidence);
@@ -139,4 +139,34 @@ TEST(Stages, ExpertOptionsByName) {
   EXPECT_THROW(setExpertOption(o, "link.maxGap", 2.5), InputError);
   EXPECT_THROW(setExpertOption(o, "ends.spanDistal", 2), InputError);
   EXPECT_THROW(setExpertOption(o, "filters.minEvidence", std::nan("")), InputError);
+  // Derived, no longer knobs: the smallest loop (twice the bump floor) and the height floor's share (the hysteresis's
+  // weakFraction).
+  EXPECT_THROW(setExpertOption(o, "profiles.minPerimeter", 0.01), InputError);
+  EXPECT_THROW(setExpertOption(o, "filters.magnitudeFraction", 0.8), InputError);
+}
+
+// The smallest section loop follows the bump floor: a loop shorter than twice it cannot hold a bump that stands out by
+// it. On the synthetic arm (upper arm about 0.28 m round, forearm less) no loop is that small at the default floor; with
+// a 0.12 m floor the loops under 0.24 m are skipped as too small, and every one skipped is under it.
+TEST(Stages, SmallestLoopFollowsTheBumpFloor) {
+  const SyntheticCharacter arm = makeSyntheticArm();
+  ExtractionOptions o;
+  o.buildSurfaces = false;
+  auto tooSmall = [](const ExtractionReport& r) {
+    int n = 0;
+    for (const SkippedSection& s : r.skipped) n += s.reason.find("too small") != std::string::npos;
+    return n;
+  };
+  EXPECT_EQ(tooSmall(extractMuscles(arm.character, o).report), 0);
+  setExpertOption(o, "bumps.minProtrusion", 0.12);
+  const ExtractionResult big = extractMuscles(arm.character, o);
+  const int skipped = tooSmall(big.report);
+  EXPECT_GT(skipped, 0);
+  EXPECT_LT(skipped, big.report.planes);  // the upper arm's loops are longer than 0.24 m
+  for (const SkippedSection& s : big.report.skipped)
+    if (s.reason.find("too small") != std::string::npos) {
+      const double perimeter = std::stod(s.reason.substr(s.reason.find('(') + 1));
+      EXPECT_LT(perimeter, 0.24) << s.reason;
+      EXPECT_GT(perimeter, 0.05) << s.reason;  // a limb's loop, not a degenerate one
+    }
 }

@@ -143,16 +143,16 @@ struct ChainFilterOptions {
                                                // (dropped), so the two bodies' shortest chains lie close together; neutral
                                                // at most half of muscular at every spacing x 0.9-1.1 for 6.25-7.0 (with
                                                // link.minSections 4 instead: 5 of 9 spacings fail). 0 = off
-  double magnitudeFraction = 0.8;              // the magnitude floor (minRelative) averages only
-                                               // the bumps of at least this share of the threshold, so faint tail
-                                               // links extend a muscle without diluting its magnitude
   double minRelative = 0.09;                   // a muscle's bumps must on average stand out at least this share of
                                                // their sections' mean radius (a belly is large for its limb; soft
                                                // body contours of thick sections are not); forced ones are kept.
+                                               // The average takes the bumps the hysteresis links outright (at least
+                                               // SectionBumpOptions::weakFraction of the threshold): faint tail links
+                                               // extend a muscle without diluting its height.
                                                // Measured: synthetic muscles 0.106-0.33, MakeHuman neutral's
                                                // flattest contours 0.083-0.085 (0 = off; continuous chains: continuousFraction)
   double continuousFraction = 0.6;             // a continuous limb chain needs only this share of minRelative (0.054): its
-  double continuousEvidence = 7.75;            // bumps of at least magnitudeFraction stand out in every plane between its
+  double continuousEvidence = 7.75;            // linked bumps of at least weakFraction stand out in every plane between its
                                                // ends, and its evidence (see minEvidence) reaches continuousEvidence. A big
                                                // belly on a thick limb rounds the whole section, so its relief against the
                                                // base is small but steady; soft contours of that height come and go along

@@ -84,7 +84,8 @@ bool trunkContour(const MuscleChain& c, const std::vector<SectionBumps>& section
 
 std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std::vector<SectionBumps>& sections,
                                       const SectionCut& cut, const Skeleton& sk, const ScaleContext& scale,
-                                      const ChainFilterOptions& options, int minSections, ExtractionReport& rep) {
+                                      const ChainFilterOptions& options, int minSections, double weakFraction,
+                                      ExtractionReport& rep) {
   const std::vector<CuttingPlane>& planes = cut.planes;
   const double evidenceScale = scale.evidenceScale();  // evidence in sections of the default spacing
   detail::SpindleOptions spindleOptions;  // the closed-spindle cue (track_evidence.h)
@@ -139,14 +140,14 @@ std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std
     bool flat = false;
     double floor = trunk ? 0.0 : options.minRelative;  // trunk chains: no height floor (minRelative's note)
     if (!trunk && evidence * evidenceScale >= options.continuousEvidence &&
-        continuousChain(c, sections, options.magnitudeFraction))
+        continuousChain(c, sections, weakFraction))
       floor *= options.continuousFraction;  // in (0, 1], checked by the core
     if (!shortChain && floor > 0) {  // the bumps' mean height relative to their sections' size (faint tails left out)
       double sum = 0.0;
       int count = 0;
       for (const ChainLink& l : c.links)
         if (l.bump >= 0 && l.bump < static_cast<int>(sections[l.section].relative.size()) &&
-            sections[l.section].significance[l.bump] >= options.magnitudeFraction)
+            sections[l.section].significance[l.bump] >= weakFraction)
           sum += sections[l.section].relative[l.bump], ++count;
       flat = count == 0 || sum < floor * count;
     }

@@ -28,7 +28,8 @@ struct ExpertField {
 #define MYOSKIN_INT(path) MYOSKIN_FIELD(path, int, 'i')
 #define MYOSKIN_BOOL(path) MYOSKIN_FIELD(path, bool, 'b')
 
-// Every expert option (the user-facing five, planes.spacing and the derived link.faint* left out).
+// Every expert option (the user-facing five, planes.spacing and the derived link.faint* and profiles.minPerimeter
+// left out).
 const std::vector<ExpertField>& expertFields() {
   static const std::vector<ExpertField> table = {
     MYOSKIN_DOUBLE(planes.endMargin),
@@ -38,7 +39,6 @@ const std::vector<ExpertField>& expertFields() {
     MYOSKIN_DOUBLE(planes.shoulderClip),
     MYOSKIN_INT(profiles.samples),
     MYOSKIN_DOUBLE(profiles.minRegionShare),
-    MYOSKIN_DOUBLE(profiles.minPerimeter),
     MYOSKIN_DOUBLE(profiles.trunkClipShare),
     MYOSKIN_DOUBLE(profiles.mirrorTolerance),
     MYOSKIN_BOOL(profiles.mirrorLimbs),
@@ -74,7 +74,6 @@ const std::vector<ExpertField>& expertFields() {
     MYOSKIN_INT(sectionBumps.trunkHarmonics),
     MYOSKIN_INT(sectionBumps.minBumpCrossings),
     MYOSKIN_DOUBLE(filters.minEvidence),
-    MYOSKIN_DOUBLE(filters.magnitudeFraction),
     MYOSKIN_DOUBLE(filters.minRelative),
     MYOSKIN_DOUBLE(filters.continuousFraction),
     MYOSKIN_DOUBLE(filters.continuousEvidence),

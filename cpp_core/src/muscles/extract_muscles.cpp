@@ -140,8 +140,8 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
   ExtractionReport& rep = result.report;
 
   // Stages 1-2: roles, planes, profiles (timings "planes" and "sections").
-  const stages::SectionCut cut = stages::cutBodySections(body, scale, surface.roles, options.planes,
-                                                         options.profiles, surface.vertexMask, rep);
+  const stages::SectionCut cut = stages::cutBodySections(body, scale, surface.roles, options.planes, options.profiles,
+                                                         options.bumps.minProtrusion, surface.vertexMask, rep);
   // Stages 3-4: CDT, bumps, ellipses per section.
   auto t0 = Clock::now();
   const stages::SectionBumpsResult found = stages::findSectionBumps(
@@ -152,7 +152,8 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
   std::vector<MuscleChain> chains =
       stages::linkSectionChains(found, options.link, options.sectionBumps, surface.forcedRegions.size(), rep);
   const std::vector<MuscleChain> kept = stages::filterChains(std::move(chains), found.sections, cut, body.skeleton, scale,
-                                                             options.filters, options.link.minSections, rep);
+                                                             options.filters, options.link.minSections,
+                                                             options.sectionBumps.weakFraction, rep);
   rep.timings.push_back({"link", secondsSince(t0)});
   // Stage 6: ends, naming, regions.
   t0 = Clock::now();

@@ -63,9 +63,11 @@ struct SectionCut {
 };
 
 // The cutting planes over the bones of `roles` (BodySurface::roles; spacing from the scale context) and a profile per
-// plane. Fills rep.bones, activeBones, planes and the timings "planes" and "sections".
+// plane. Loops shorter than twice `bumpFloor` (BumpOptions::minProtrusion) are skipped: none of their points lies more
+// than half their length from another, so no bump on them stands out by the floor (profiles.minPerimeter is set from
+// it). Fills rep.bones, activeBones, planes and the timings "planes" and "sections".
 SectionCut cutBodySections(const Character& body, const ScaleContext& scale, const std::vector<BoneRole>& roles,
-                           const PlaneOptions& planes, const ProfileOptions& profiles,
+                           const PlaneOptions& planes, const ProfileOptions& profiles, double bumpFloor,
                            const std::vector<char>& vertexMask, ExtractionReport& rep);
 
 // ============================================================================
@@ -96,10 +98,12 @@ std::vector<MuscleChain> linkSectionChains(const SectionBumpsResult& found, cons
 
 // The floors (length, evidence, height, confidence) and the cues that keep a chain below them (closed spindle,
 // mirror twin). Returns the kept chains; fills rep.chainRecords and the dropped counts. `minSections`:
-// LinkOptions::minSections.
+// LinkOptions::minSections; `weakFraction`: SectionBumpOptions::weakFraction (links below it are faint tails, left out
+// of the height floor).
 std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std::vector<SectionBumps>& sections,
                                       const SectionCut& cut, const Skeleton& skeleton, const ScaleContext& scale,
-                                      const ChainFilterOptions& options, int minSections, ExtractionReport& rep);
+                                      const ChainFilterOptions& options, int minSections, double weakFraction,
+                                      ExtractionReport& rep);
 
 // ============================================================================
 // Stage 6: ends, regions, names

@@ -9,7 +9,7 @@ namespace myoskin::stages {
 // ============================================================================
 
 SectionCut cutBodySections(const Character& character, const ScaleContext& scale, const std::vector<BoneRole>& roles,
-                           const PlaneOptions& planeOptions, const ProfileOptions& profiles,
+                           const PlaneOptions& planeOptions, const ProfileOptions& profileOptions, double bumpFloor,
                            const std::vector<char>& vertexMask, ExtractionReport& rep) {
   auto t0 = std::chrono::steady_clock::now();
   SectionCut cut;
@@ -22,6 +22,8 @@ SectionCut cutBodySections(const Character& character, const ScaleContext& scale
   rep.planes = static_cast<int>(cut.planes.size());
   rep.timings.push_back({"planes", secondsSince(t0)});
   t0 = std::chrono::steady_clock::now();
+  ProfileOptions profiles = profileOptions;
+  profiles.minPerimeter = 2.0 * bumpFloor;
   cut.profiles = cutSections(character, cut.planes, profiles, vertexMask.empty() ? nullptr : &vertexMask);
   rep.timings.push_back({"sections", secondsSince(t0)});
   return cut;
