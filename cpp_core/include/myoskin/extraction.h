@@ -311,7 +311,7 @@ struct ExtractionReport {
   int bones = 0, activeBones = 0;     // bones, bones with a role other than Ignore
   int planes = 0;
   int sections = 0;                   // profiles that gave a clean loop
-  int mirrored = 0;                   // trunk profiles made exactly mirror-symmetric (ProfileOptions::mirrorTolerance)
+  int mirrored = 0;                   // trunk profiles made exactly mirror-symmetric (within one sample spacing)
   int split = 0;                      // trunk sections triangulated as two halves along their mirror axis
   int bumps = 0;                      // significant bumps over all sections
   int chains = 0;                     // linked chains before the minimum-section filter

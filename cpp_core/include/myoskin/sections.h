@@ -121,8 +121,8 @@ struct SectionProfile {
                              // plane crosses mesh edges, so they tell how finely the mesh resolves an arc
   int loopPoints = 0;        // points of the cut loop (segment indices run over [0, loopPoints))
   double perimeter = 0.0;   // metres
-  bool symmetric = false;   // made exactly mirror-symmetric (ProfileOptions::mirrorTolerance): about the plane's y
-                            // axis (trunk), or with its mirrored twin on the other side (limbs)
+  bool symmetric = false;   // made exactly mirror-symmetric (its mirrored samples within one sample spacing): about
+                            // the plane's y axis (trunk), or with its mirrored twin on the other side (limbs)
   bool ok = false;
   std::string skipReason;   // why the section was skipped (no loop around the bone, open loop, ...)
 };
@@ -136,11 +136,8 @@ struct ProfileOptions {
                                 // minRegionShare on its region, at least this much): the runs off the region
                                 // become straight chords (onSkin 0), so the chest between the shoulders is
                                 // sectioned too; 0 = such planes are skipped
-  double mirrorTolerance = 0.002;  // metres: a mirror-axis section (CuttingPlane::mirrorAxis) whose mirrored
-                                   // samples pair up within this is made exactly symmetric (each pair averaged),
-                                   // so the bump stage sees both sides alike; 0 = never
   bool mirrorLimbs = false;  // also average a left and a right plane's profiles that mirror each other about the
-                             // trunk's mirror plane within mirrorTolerance (limbs, shoulders), so mirrored limbs give
+                             // trunk's mirror plane within one sample spacing (limbs, shoulders), so mirrored limbs give
                              // exactly mirrored bumps. Off by default: measured on MakeHuman, limbs are mirrored
                              // within 1 cm without it at the default hysteresis, and with it the neutral body keeps
                              // 8 muscles instead of 6; it is needed for fainter hysteresis (weakFraction 0.5)

@@ -40,7 +40,6 @@ const std::vector<ExpertField>& expertFields() {
     MYOSKIN_INT(profiles.samples),
     MYOSKIN_DOUBLE(profiles.minRegionShare),
     MYOSKIN_DOUBLE(profiles.trunkClipShare),
-    MYOSKIN_DOUBLE(profiles.mirrorTolerance),
     MYOSKIN_BOOL(profiles.mirrorLimbs),
     MYOSKIN_DOUBLE(bumps.minProtrusion),
     MYOSKIN_DOUBLE(bumps.minRelativeProtrusion),

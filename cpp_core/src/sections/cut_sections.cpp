@@ -260,15 +260,16 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
   prof.segment = source;
   prof.loopPoints = static_cast<int>(loop.points.size());
   const bool trunkClipped = plane.mirrorAxis && !skin.empty();
-  if (plane.mirrorAxis && count % 2 == 0 && o.mirrorTolerance > 0) {
+  if (plane.mirrorAxis && count % 2 == 0) {
     // Sample k mirrors sample count - k (both start on the +Y axis and run the same arc length): when every pair
-    // matches within the tolerance, average each pair so the two sides are exact mirror images.
+    // matches within one sample spacing (the resampling's own resolution), average each pair so the two sides are
+    // exact mirror images.
     double worst = 0.0;
     for (int k = 0; k <= count / 2; ++k) {
       const int j = (count - k) % count;
       worst = std::max(worst, std::hypot(prof.polygon(k, 0) + prof.polygon(j, 0), prof.polygon(k, 1) - prof.polygon(j, 1)));
     }
-    if (worst <= o.mirrorTolerance) {
+    if (worst <= perimeter / count) {
       for (int k = 0; k <= count / 2; ++k) {
         const int j = (count - k) % count;
         const double x = 0.5 * (prof.polygon(k, 0) - prof.polygon(j, 0)), y = 0.5 * (prof.polygon(k, 1) + prof.polygon(j, 1));
@@ -314,10 +315,9 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
 // A left and a right plane of one family and order whose frames mirror each other about the skeleton's mirror
 // plane (skeletonMirrorPlane: its left-right axis, whichever axis of the rig that is; mirrored limbs' X axes are
 // mirrored and negated, as makeCuttingPlanes orients them) give profiles where sample k of one mirrors sample N - k
-// of the other in plane coordinates, (x, y) -> (-x, y). When every pair matches within the tolerance, both become the
-// average, exact mirror images.
-void mirrorTwins(const std::vector<CuttingPlane>& planes, double tolerance, std::vector<SectionProfile>& out) {
-  if (!(tolerance > 0)) return;
+// of the other in plane coordinates, (x, y) -> (-x, y). When the planes' origins and every pair match within one sample
+// spacing of the first profile, both become the average, exact mirror images.
+void mirrorTwins(const std::vector<CuttingPlane>& planes, std::vector<SectionProfile>& out) {
   Vec3 c, n;
   if (!skeletonMirrorPlane(planes, c, n)) return;
   auto point = [&](const Vec3& p) { return Vec3(p - 2.0 * (p - c).dot(n) * n); };
@@ -325,7 +325,8 @@ void mirrorTwins(const std::vector<CuttingPlane>& planes, double tolerance, std:
   std::vector<char> taken(planes.size(), 0);
   for (size_t i = 0; i < planes.size(); ++i) {
     const CuttingPlane& a = planes[i];
-    if (a.mirrorAxis || taken[i] || !out[i].ok || !out[i].onSkin.empty()) continue;
+    if (a.mirrorAxis || taken[i] || !out[i].ok || !out[i].onSkin.empty() || out[i].polygon.rows() == 0) continue;
+    const double tolerance = out[i].perimeter / static_cast<double>(out[i].polygon.rows());  // one sample spacing
     for (size_t j = i + 1; j < planes.size(); ++j) {
       const CuttingPlane& b = planes[j];
       if (taken[j] || b.family != a.family || b.familyIndex == a.familyIndex || b.order != a.order) continue;
@@ -387,7 +388,7 @@ std::vector<SectionProfile> cutSections(const Character& character, const std::v
       out[i].skipReason = std::string("cutting failed: ") + e.what();
     }
   });
-  if (options.mirrorLimbs) mirrorTwins(planes, options.mirrorTolerance, out);
+  if (options.mirrorLimbs) mirrorTwins(planes, out);
   return out;
 }
 
