@@ -104,7 +104,6 @@ const std::map<std::string, std::string> kRemovedKeywords = {
     {"mirror_limbs", "profiles.mirrorLimbs"},
     {"faint_relative", "sectionBumps.faintRelative"},
     {"min_evidence", "filters.minEvidence"},
-    {"continuous_fraction", "filters.continuousFraction"},
     {"continuous_evidence", "filters.continuousEvidence"},
     {"reference_limb_radius", "scale.referenceLimbRadius"},
     {"spindle_ends", "filters.spindleEnds"},
@@ -124,6 +123,9 @@ void bindExtraction(py::module_& m) {
         for (const auto& [name, value] : removed) {  // the old expert keywords: a TypeError naming the new key
           const std::string key = name.cast<std::string>();
           const auto it = kRemovedKeywords.find(key);
+          if (key == "continuous_fraction")  // gone altogether: a continuous chain is held to one bump's floor
+            throw py::type_error("extract_muscles(): 'continuous_fraction' was removed: a continuous chain is held to "
+                                 "one bump's height floor, options={'bumps.minRelativeProtrusion': ...}");
           if (it == kRemovedKeywords.end())
             throw py::type_error("extract_muscles() got an unexpected keyword argument '" + key + "'");
           throw py::type_error("extract_muscles(): '" + key + "' is an expert option now: pass options={'" +

@@ -58,7 +58,8 @@ TEST(Stages, EachStageAloneGivesTheOneShotResult) {
     EXPECT_EQ(rep.chains, shot.report.chains);
     const std::vector<MuscleChain> kept = stages::filterChains(std::move(chains), found.sections, cut,
                                                                surface.body.skeleton, scale, o.filters,
-                                                               o.link.minSections, o.sectionBumps.weakFraction, rep);
+                                                               o.link.minSections, o.sectionBumps.weakFraction,
+                                                               o.bumps.minRelativeProtrusion, rep);
     EXPECT_EQ(rep.droppedShort, shot.report.droppedShort);
     EXPECT_EQ(rep.droppedFlat, shot.report.droppedFlat);
     EXPECT_EQ(rep.droppedConfidence, shot.report.droppedConfidence);
@@ -143,6 +144,7 @@ TEST(Stages, ExpertOptionsByName) {
   // weakFraction).
   EXPECT_THROW(setExpertOption(o, "profiles.minPerimeter", 0.01), InputError);
   EXPECT_THROW(setExpertOption(o, "filters.magnitudeFraction", 0.8), InputError);
+  EXPECT_THROW(setExpertOption(o, "filters.continuousFraction", 0.6), InputError);
 }
 
 // The smallest section loop follows the bump floor: a loop shorter than twice it cannot hold a bump that stands out by

@@ -87,7 +87,8 @@ def test_user_control_options(core, arm):
     assert all(np.asarray(m.section_centers)[:, 0].min() > 0.45 for m in forearm)
     none, _ = core.extract_muscles(character, min_confidence=1.0)
     assert none == []
-    flat, report = core.extract_muscles(character, options={"filters.minRelative": 0.5, "filters.spindleEnds": 0.0})  # no spindle kept below it
+    flat, report = core.extract_muscles(character, options={  # no spindle nor continuous chain kept below it
+        "filters.minRelative": 0.5, "filters.spindleEnds": 0.0, "filters.continuousEvidence": 1e9})
     assert flat == [] and report["dropped_flat"] >= len(everything)
     # The evidence floor only removes muscles (no muscle of this arm has 100 sections' worth of significance), but
     # closed spindles are kept below it (filters.spindleEnds): the arm's bellies are such spindles.
@@ -188,17 +189,19 @@ def test_cli_extract_makehuman(tmp_path):
 
 def test_continuous_floor_keeps_the_quadriceps(core):
     # On the muscular male the quadriceps stand out only 0.061-0.074 of the thigh radius, in every plane of the
-    # front thigh: kept by the continuous floor (0.6 x filters.minRelative), dropped without it (continuousFraction 1).
+    # front thigh: kept by the continuous floor (one bump's floor, bumps.minRelativeProtrusion 0.05, instead of
+    # filters.minRelative 0.09), dropped without it (the rule off: no chain reaches the evidence it then asks for).
     character = core.load_character(shared(MUSCULAR))
     default, _ = core.extract_muscles(character, build_surfaces=False)
-    off, report = core.extract_muscles(character, build_surfaces=False, options={"filters.continuousFraction": 1.0})
+    off, report = core.extract_muscles(character, build_surfaces=False, options={"filters.continuousEvidence": 1e9})
     names = {m.name for m in default} - {m.name for m in off}
     assert len(off) < len(default) and report["dropped_flat"] > 0
     assert {"quadriceps.L", "quadriceps.R"} <= names, names
-    for bad in ({"filters.continuousFraction": 0.0}, {"filters.continuousFraction": 1.5},
-                {"filters.continuousEvidence": -1.0}):
-        with pytest.raises(ValueError, match="continuous"):
-            core.extract_muscles(character, build_surfaces=False, options=bad)
+    with pytest.raises(ValueError, match="continuous"):
+        core.extract_muscles(character, build_surfaces=False, options={"filters.continuousEvidence": -1.0})
+    # continuousFraction was replaced by the bump floor: an unknown key now
+    with pytest.raises(ValueError, match="unknown expert extraction option"):
+        core.extract_muscles(character, build_surfaces=False, options={"filters.continuousFraction": 0.6})
 
 
 def test_bone_roles_and_the_report_say_what_was_analysed(core, arm):
@@ -385,6 +388,8 @@ def test_old_expert_keywords_raise_type_error_bad_values_value_error(core, arm):
             core.extract_muscles(character, **{old: 1.0})
     with pytest.raises(TypeError, match="no_such_option"):
         core.extract_muscles(character, no_such_option=1.0)
+    with pytest.raises(TypeError, match="continuous_fraction' was removed"):
+        core.extract_muscles(character, continuous_fraction=0.6)
     with pytest.raises(ValueError, match="unknown expert extraction option"):
         core.extract_muscles(character, options={"filters.nothing": 1.0})
     with pytest.raises(ValueError, match="integer"):

@@ -150,10 +150,11 @@ struct ChainFilterOptions {
                                                // SectionBumpOptions::weakFraction of the threshold): faint tail links
                                                // extend a muscle without diluting its height.
                                                // Measured: synthetic muscles 0.106-0.33, MakeHuman neutral's
-                                               // flattest contours 0.083-0.085 (0 = off; continuous chains: continuousFraction)
-  double continuousFraction = 0.6;             // a continuous limb chain needs only this share of minRelative (0.054): its
-  double continuousEvidence = 7.75;            // linked bumps of at least weakFraction stand out in every plane between its
-                                               // ends, and its evidence (see minEvidence) reaches continuousEvidence. A big
+                                               // flattest contours 0.083-0.085 (0 = off; continuous chains: continuousEvidence)
+  double continuousEvidence = 7.75;            // a continuous limb chain, whose linked bumps of at least weakFraction
+                                               // stand out in every plane between its ends and whose evidence (see
+                                               // minEvidence) reaches this, is held to the height one bump needs
+                                               // (BumpOptions::minRelativeProtrusion, 0.05) instead of minRelative: a big
                                                // belly on a thick limb rounds the whole section, so its relief against the
                                                // base is small but steady; soft contours of that height come and go along
                                                // the limb. Measured on MakeHuman, spacing x 0.9-1.1: the muscular male's
@@ -163,10 +164,11 @@ struct ChainFilterOptions {
                                                // or are short (its only continuous one: evidence 7.25 at x 0.95), so its
                                                // counts do not change; at x 1.1 a knee-side thigh chain (evidence 8.07 and
                                                // 8.19, mean height 0.090 and 0.091) is kept on both sides, not one. Works
-                                               // for 0.5-0.67 (0.72 loses the quadriceps at x 0.95 and 1.1) and evidence
-                                               // 7.5-8.0 (7.0 adds the neutral chain; counting strong sections instead, 4
-                                               // gives an unpaired calf at x 1.05 and 5 loses the quadriceps at x 0.95).
-                                               // 1 = off
+                                               // for evidence 7.5-8.0 (7.0 adds the neutral chain; counting strong sections
+                                               // instead, 4 gives an unpaired calf at x 1.05 and 5 loses the quadriceps at
+                                               // x 0.95). Its height was a fitted share of minRelative (0.6, working for
+                                               // 0.5-0.67), which the bump floor 0.05 / 0.09 = 0.556 replaces with the same
+                                               // results on every tuning and held-out set. A huge value = off
   // The trunk families (abdomen, neck: planes across the whole body, bumps against the Fourier base, trunkHarmonics)
   // have no height floor: the evidence floor decides them. Their floor minRelativeTrunk (0.05) was removed when turning
   // it off changed nothing (bench_floor_ablation: tune seeds 1-11 muscular and smooth, MakeHuman muscular and neutral at

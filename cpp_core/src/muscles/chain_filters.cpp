@@ -85,7 +85,7 @@ bool trunkContour(const MuscleChain& c, const std::vector<SectionBumps>& section
 std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std::vector<SectionBumps>& sections,
                                       const SectionCut& cut, const Skeleton& sk, const ScaleContext& scale,
                                       const ChainFilterOptions& options, int minSections, double weakFraction,
-                                      ExtractionReport& rep) {
+                                      double bumpRelative, ExtractionReport& rep) {
   const std::vector<CuttingPlane>& planes = cut.planes;
   const double evidenceScale = scale.evidenceScale();  // evidence in sections of the default spacing
   detail::SpindleOptions spindleOptions;  // the closed-spindle cue (track_evidence.h)
@@ -139,9 +139,8 @@ std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std
     bool shortChain = c.strongSections < minSections || evidence * evidenceScale < options.minEvidence;
     bool flat = false;
     double floor = trunk ? 0.0 : options.minRelative;  // trunk chains: no height floor (minRelative's note)
-    if (!trunk && evidence * evidenceScale >= options.continuousEvidence &&
-        continuousChain(c, sections, weakFraction))
-      floor *= options.continuousFraction;  // in (0, 1], checked by the core
+    if (!trunk && evidence * evidenceScale >= options.continuousEvidence && continuousChain(c, sections, weakFraction))
+      floor = std::min(floor, bumpRelative);  // a continuous chain: the height one bump needs
     if (!shortChain && floor > 0) {  // the bumps' mean height relative to their sections' size (faint tails left out)
       double sum = 0.0;
       int count = 0;

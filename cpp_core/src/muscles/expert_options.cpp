@@ -74,7 +74,6 @@ const std::vector<ExpertField>& expertFields() {
     MYOSKIN_INT(sectionBumps.minBumpCrossings),
     MYOSKIN_DOUBLE(filters.minEvidence),
     MYOSKIN_DOUBLE(filters.minRelative),
-    MYOSKIN_DOUBLE(filters.continuousFraction),
     MYOSKIN_DOUBLE(filters.continuousEvidence),
     MYOSKIN_DOUBLE(filters.spindleEnds),
     MYOSKIN_DOUBLE(filters.spindleLength),

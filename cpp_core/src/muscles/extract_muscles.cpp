@@ -78,8 +78,6 @@ void validateExtraction(const Character& character, const ExtractionOptions& opt
           "sectionBumps.faintRelative must be in [0, 1]");
   require(options.filters.minRelative >= 0, "filters.minRelative must be >= 0");
   require(options.filters.minEvidence >= 0, "filters.minEvidence must be >= 0");
-  require(options.filters.continuousFraction > 0 && options.filters.continuousFraction <= 1,
-          "filters.continuousFraction must be in (0, 1] (1 = no relief for continuous chains)");
   require(options.filters.continuousEvidence >= 0, "filters.continuousEvidence must be >= 0");
   if (options.sectionBumps.trunkHarmonics < 0 || options.sectionBumps.trunkHarmonics > 16)
     throw InputError("trunkHarmonics must be in [0, 16], got " + std::to_string(options.sectionBumps.trunkHarmonics));
@@ -153,7 +151,8 @@ ExtractionResult extractMuscles(const Character& character, const ExtractionOpti
       stages::linkSectionChains(found, options.link, options.sectionBumps, surface.forcedRegions.size(), rep);
   const std::vector<MuscleChain> kept = stages::filterChains(std::move(chains), found.sections, cut, body.skeleton, scale,
                                                              options.filters, options.link.minSections,
-                                                             options.sectionBumps.weakFraction, rep);
+                                                             options.sectionBumps.weakFraction,
+                                                             options.bumps.minRelativeProtrusion, rep);
   rep.timings.push_back({"link", secondsSince(t0)});
   // Stage 6: ends, naming, regions.
   t0 = Clock::now();

@@ -99,11 +99,11 @@ std::vector<MuscleChain> linkSectionChains(const SectionBumpsResult& found, cons
 // The floors (length, evidence, height, confidence) and the cues that keep a chain below them (closed spindle,
 // mirror twin). Returns the kept chains; fills rep.chainRecords and the dropped counts. `minSections`:
 // LinkOptions::minSections; `weakFraction`: SectionBumpOptions::weakFraction (links below it are faint tails, left out
-// of the height floor).
+// of the height floor); `bumpRelative`: BumpOptions::minRelativeProtrusion (a continuous chain's height floor).
 std::vector<MuscleChain> filterChains(std::vector<MuscleChain> chains, const std::vector<SectionBumps>& sections,
                                       const SectionCut& cut, const Skeleton& skeleton, const ScaleContext& scale,
                                       const ChainFilterOptions& options, int minSections, double weakFraction,
-                                      ExtractionReport& rep);
+                                      double bumpRelative, ExtractionReport& rep);
 
 // ============================================================================
 // Stage 6: ends, regions, names
