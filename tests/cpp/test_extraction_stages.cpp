@@ -165,10 +165,13 @@ TEST(Stages, SmallestLoopFollowsTheBumpFloor) {
   const int skipped = tooSmall(big.report);
   EXPECT_GT(skipped, 0);
   EXPECT_LT(skipped, big.report.planes);  // the upper arm's loops are longer than 0.24 m
+  int measured = 0;
   for (const SkippedSection& s : big.report.skipped)
     if (s.reason.find("too small") != std::string::npos) {
       const double perimeter = std::stod(s.reason.substr(s.reason.find('(') + 1));
       EXPECT_LT(perimeter, 0.24) << s.reason;
       EXPECT_GT(perimeter, 0.05) << s.reason;  // a limb's loop, not a degenerate one
+      ++measured;
     }
+  EXPECT_EQ(measured, skipped);
 }
