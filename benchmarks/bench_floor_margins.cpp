@@ -6,12 +6,14 @@
 //   bench_floor_margins [--full]   (default: tune seeds 1-4, MakeHuman muscular and neutral at spacings x 0.95, 1 and
 //   1.05, the shared characters, the synthetic arms 0-11 at muscle scales 1 and 0.2; --full: tune seeds 1-11 and the
 //   nine MakeHuman spacings of bench_floor_ablation). Printed, never asserted; tune seeds only.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <string>
 #include <vector>
 
+#include "myoskin/errors.h"
 #include "myoskin/extraction.h"
 #include "myoskin/io.h"
 #include "myoskin/synthetic_character.h"
