@@ -5,7 +5,8 @@
 // are compared with diff. Printed, never asserted; tune seeds only (held-out seeds are the tests').
 //   bench_floor_ablation [--seeds FIRST LAST] [--heldout] [--generated] [--arms] [--records] [key=value ...]   (default
 //   seeds 1-11; keys: expertOptions(), and filters.minConfidence). --arms: the synthetic arms instead (seeds 0-11 at
-//   muscle scales 1, 0.2, 0.1 and 0: the arm tests' tuned and held-out seeds, faint and smooth arms).
+//   muscle scales 1, 0.2, 0.1 and 0: the arm tests' tuned and held-out seeds, faint and smooth arms; --seeds and
+//   --heldout do not apply).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

@@ -122,10 +122,11 @@ void bindExtraction(py::module_& m) {
          const py::kwargs& removed) {
         for (const auto& [name, value] : removed) {  // the old expert keywords: a TypeError naming the new key
           const std::string key = name.cast<std::string>();
-          const auto it = kRemovedKeywords.find(key);
           if (key == "continuous_fraction")  // gone altogether: a continuous chain is held to one bump's floor
             throw py::type_error("extract_muscles(): 'continuous_fraction' was removed: a continuous chain is held to "
-                                 "one bump's height floor, options={'bumps.minRelativeProtrusion': ...}");
+                                 "one bump's height floor (bumps.minRelativeProtrusion); options="
+                                 "{'filters.continuousEvidence': 1e9} turns the continuous rule off");
+          const auto it = kRemovedKeywords.find(key);
           if (it == kRemovedKeywords.end())
             throw py::type_error("extract_muscles() got an unexpected keyword argument '" + key + "'");
           throw py::type_error("extract_muscles(): '" + key + "' is an expert option now: pass options={'" +

@@ -812,8 +812,9 @@ TEST(Measured, MakeHumanRobustToPlaneSpacing) {
 
 TEST(Measured, FaintHysteresisWithMirroredLimbs) {
   // Opt-in: hysteresis down to half the threshold for every chain, mirrored limb profiles averaged. Measured:
-  // every seed's six muscles and nothing else; MakeHuman muscular 22 / 22 / 26 at spacing x 0.95 / 1 / 1.05
-  // against neutral 10 / 8 / 6 (8 at x 0.95 with spindle ends 0.75), every muscular one exactly mirrored. Not the default: the synthetic arm's biceps then reaches further towards the
+  // every seed's six muscles and nothing else; MakeHuman muscular 20 / 20 / 22 at spacing x 0.95 / 1 / 1.05
+  // against neutral 10 / 6 / 8 (the height floor averages the links down to weakFraction), every muscular one exactly
+  // mirrored. Not the default: the synthetic arm's biceps then reaches further towards the
   // elbow and the hybrid skinning's elbow region at 35 degrees grows more than LBS loses (test_hybrid_skinning).
   ExtractionOptions o;
   o.sectionBumps.weakFraction = 0.5;

@@ -168,7 +168,9 @@ TEST(Stages, SmallestLoopFollowsTheBumpFloor) {
   int measured = 0;
   for (const SkippedSection& s : big.report.skipped)
     if (s.reason.find("too small") != std::string::npos) {
-      const double perimeter = std::stod(s.reason.substr(s.reason.find('(') + 1));
+      const size_t open = s.reason.find('(');
+      ASSERT_NE(open, std::string::npos) << s.reason;
+      const double perimeter = std::stod(s.reason.substr(open + 1));
       EXPECT_LT(perimeter, 0.24) << s.reason;
       EXPECT_GT(perimeter, 0.05) << s.reason;  // a limb's loop, not a degenerate one
       ++measured;

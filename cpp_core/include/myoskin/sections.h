@@ -130,8 +130,8 @@ struct SectionProfile {
 struct ProfileOptions {
   int samples = 0;  // points per profile after even resampling; 0 = derived (~2 mm apart, 48..400)
   double minRegionShare = 0.9;  // share of the loop's length that must lie on the plane's region
-  double minPerimeter = 0.01;   // metres: smaller loops are skipped (extractMuscles derives it: twice the bump
-                                // floor BumpOptions::minProtrusion)
+  double minPerimeter = 0.007;  // metres: smaller loops are skipped (extractMuscles derives it: twice the bump
+                                // floor BumpOptions::minProtrusion, the default here)
   double trunkClipShare = 0.4;  // a trunk (mirror-axis) plane whose loop runs into the arms or legs (less than
                                 // minRegionShare on its region, at least this much): the runs off the region
                                 // become straight chords (onSkin 0), so the chest between the shoulders is

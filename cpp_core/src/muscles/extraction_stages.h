@@ -67,7 +67,7 @@ struct SectionCut {
 // than half their length from another, so no bump on them stands out by the floor (profiles.minPerimeter is set from
 // it). Fills rep.bones, activeBones, planes and the timings "planes" and "sections".
 SectionCut cutBodySections(const Character& body, const ScaleContext& scale, const std::vector<BoneRole>& roles,
-                           const PlaneOptions& planes, const ProfileOptions& profiles, double bumpFloor,
+                           const PlaneOptions& planes, const ProfileOptions& profileOptions, double bumpFloor,
                            const std::vector<char>& vertexMask, ExtractionReport& rep);
 
 // ============================================================================
