@@ -3,8 +3,9 @@
 // muscles (count or names), the mean recall and precision over the generated muscular bodies and arms (true muscles
 // known; a mean over bodies, each arm and body weighing the same; a body where nothing is found has precision 1), the
 // muscles found on the smooth bodies (false alarms), and MakeHuman muscular / neutral at the sweep's spacing x 1 (1/80
-// of the bounding box, where the automatic spacing, 1/80 of the principal extent, gives 20 / 6). A floor that changes many characters at 5 % sits on decisions a character nobody tuned on may fall either
-// side of; one that changes recall or precision little is safe to move.
+// of the bounding box, where the automatic spacing, 1/80 of the principal extent, gives 20 / 6). A floor that changes
+// many characters at 5 % sits on decisions a character nobody tuned on may fall either side of; one that changes recall
+// or precision little is safe to move.
 //   bench_floor_margins [--full]   (default: tune seeds 1-4, muscular and smooth, MakeHuman muscular and neutral at
 //   spacings x 0.95, 1 and 1.05, the low-poly male, the horse and the soldier, the synthetic arms 0-11 at muscle
 //   scales 1 and 0.2; --full: tune seeds 1-11 and the nine spacings of bench_floor_ablation). Printed, never asserted.

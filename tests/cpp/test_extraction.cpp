@@ -530,8 +530,8 @@ TEST(Measured, DeterministicAndUserControl) {
   o.filters.minConfidence = 0.5;
   // A peak-magnitude floor only removes muscles: no belly stands out half its section's radius, and every
   // significant bump stands out at least minProtrusion (3.5 mm), over 5 % of these sections' radius. (The spindle
-  // rule keeps closed spindles below the floor: off here; 5 of the arm's 6 muscles are such spindles. A continuous chain
-  // is held to one bump's floor instead, bumps.minRelativeProtrusion: that rule is off here too.)
+  // rule keeps closed spindles below the floor: off here; 5 of the arm's 6 muscles are such spindles. A continuous
+  // chain is held to one bump's floor instead, bumps.minRelativeProtrusion: that rule is off here too.)
   o = {};
   o.filters.spindleEnds = 0.0;
   o.filters.continuousEvidence = 1e9;
@@ -756,8 +756,8 @@ TEST(Measured, MakeHumanAnatomicalGroups) {
   // at t 0.14-0.22, front -0.66 to -0.68, up +0.72 to +0.75, found at every spacing except x 1.1; the triceps chains
   // there lie at up -0.74 to -0.94, the neutral body's at up -0.71 to -0.76), pectorals 1 + 1, quadriceps
   // 1 + 1 (planes 3-9 of the thigh, 0.056-0.085 of its radius, mean 0.067: under minRelative 0.09, kept as a
-  // continuous chain, held to one bump's floor 0.05: ChainFilterOptions::continuousEvidence) and calves 1 + 1 (the gastrocnemius below the knee,
-  // planes 17-22, its apex alternating between the two heads: two fragments of evidence 5.1 and 2.3 merged,
+  // continuous chain, held to one bump's floor 0.05: ChainFilterOptions::continuousEvidence) and calves 1 + 1 (the
+  // gastrocnemius below the knee, planes 17-22, its apex alternating between the two heads: two fragments of evidence 5.1 and 2.3 merged,
   // LinkOptions::mergeAlternating). Over spacings x 0.9-1.1 the quadriceps are found at every one, the calves at
   // x 0.9-1.025 except x 0.925. Not found: the deltoid's top over the joint (the clipped shoulder01 profiles' cap
   // bump encloses the bone; the upperarm01 planes' loops run into the trunk and are skipped).

@@ -148,8 +148,8 @@ TEST(Stages, ExpertOptionsByName) {
 }
 
 // The smallest section loop follows the bump floor: a loop shorter than twice it cannot hold a bump that stands out by
-// it. On the synthetic arm (upper arm about 0.28 m round, forearm less) no loop is that small at the default floor; with
-// a 0.12 m floor the loops under 0.24 m are skipped as too small, and every one skipped is under it.
+// it. On the synthetic arm (upper arm about 0.28 m round, forearm less) no loop is that small at the default floor;
+// with a 0.12 m floor the loops under 0.24 m are skipped as too small, and every one skipped is under it.
 TEST(Stages, SmallestLoopFollowsTheBumpFloor) {
   const SyntheticCharacter arm = makeSyntheticArm();
   ExtractionOptions o;

@@ -126,6 +126,12 @@ Points2 resample(const std::vector<Vec2>& pts, int count, std::vector<int>& sour
 // One section
 // ============================================================================
 
+// One sample spacing of a resampled profile (its loop's length over its samples; 0 when it has none): mirrored samples
+// within it count as matching (the resampling's own resolution).
+double sampleSpacing(const SectionProfile& p) {
+  return p.polygon.rows() > 0 ? p.perimeter / static_cast<double>(p.polygon.rows()) : 0.0;
+}
+
 SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const ProfileOptions& o,
                       const std::vector<int>& dominant, const std::vector<char>* mask) {
   SectionProfile prof;
@@ -262,14 +268,13 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
   const bool trunkClipped = plane.mirrorAxis && !skin.empty();
   if (plane.mirrorAxis && count % 2 == 0) {
     // Sample k mirrors sample count - k (both start on the +Y axis and run the same arc length): when every pair
-    // matches within one sample spacing (the resampling's own resolution), average each pair so the two sides are
-    // exact mirror images.
+    // matches within one sample spacing, average each pair so the two sides are exact mirror images.
     double worst = 0.0;
     for (int k = 0; k <= count / 2; ++k) {
       const int j = (count - k) % count;
       worst = std::max(worst, std::hypot(prof.polygon(k, 0) + prof.polygon(j, 0), prof.polygon(k, 1) - prof.polygon(j, 1)));
     }
-    if (worst <= perimeter / count) {
+    if (worst <= sampleSpacing(prof)) {
       for (int k = 0; k <= count / 2; ++k) {
         const int j = (count - k) % count;
         const double x = 0.5 * (prof.polygon(k, 0) - prof.polygon(j, 0)), y = 0.5 * (prof.polygon(k, 1) + prof.polygon(j, 1));
@@ -326,7 +331,7 @@ void mirrorTwins(const std::vector<CuttingPlane>& planes, std::vector<SectionPro
   for (size_t i = 0; i < planes.size(); ++i) {
     const CuttingPlane& a = planes[i];
     if (a.mirrorAxis || taken[i] || !out[i].ok || !out[i].onSkin.empty() || out[i].polygon.rows() == 0) continue;
-    const double tolerance = out[i].perimeter / static_cast<double>(out[i].polygon.rows());  // one sample spacing
+    const double tolerance = sampleSpacing(out[i]);
     for (size_t j = i + 1; j < planes.size(); ++j) {
       const CuttingPlane& b = planes[j];
       if (taken[j] || b.family != a.family || b.familyIndex == a.familyIndex || b.order != a.order) continue;
