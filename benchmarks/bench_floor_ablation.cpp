@@ -4,9 +4,9 @@
 // One line per character: its muscle count, matched true muscles, names, and a checksum of the root curves, so two runs
 // are compared with diff. Printed, never asserted; tune seeds only (held-out seeds are the tests').
 //   bench_floor_ablation [--seeds FIRST LAST] [--heldout] [--generated] [--arms] [--records] [key=value ...]   (default
-//   seeds 1-11; keys: expertOptions(), and filters.minConfidence). --arms: the synthetic arms instead (seeds 0-11 at
-//   muscle scales 1, 0.2, 0.1 and 0: the arm tests' tuned and held-out seeds, faint and smooth arms; --seeds and
-//   --heldout do not apply).
+//   seeds 1-11; keys: expertOptions(), filters.minConfidence and profiles.sampleSpacing). --arms: the synthetic arms
+//   instead (seeds 0-11 at muscle scales 1, 0.2, 0.1 and 0: the arm tests' tuned and held-out seeds, faint and smooth
+//   arms; --seeds and --heldout do not apply).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -82,6 +82,8 @@ int main(int argc, char** argv) {
       }
       if (a.substr(0, eq) == "filters.minConfidence")  // user-facing, not an expert key
         base.filters.minConfidence = std::atof(a.c_str() + eq + 1);
+      else if (a.substr(0, eq) == "profiles.sampleSpacing")  // the profiles' resolution, no expert key either
+        base.profiles.sampleSpacing = std::atof(a.c_str() + eq + 1);
       else
         setExpertOption(base, a.substr(0, eq), std::atof(a.c_str() + eq + 1));
     }

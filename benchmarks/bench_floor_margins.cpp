@@ -5,10 +5,11 @@
 // muscles found on the smooth bodies (false alarms), and MakeHuman muscular / neutral at the sweep's spacing x 1 (1/80
 // of the bounding box, where the automatic spacing, 1/80 of the principal extent, gives 20 / 6). A floor that changes
 // many characters at 5 % sits on decisions a character nobody tuned on may fall either side of; one that changes recall
-// or precision little is safe to move.
-//   bench_floor_margins [--full]   (default: tune seeds 1-4, muscular and smooth, MakeHuman muscular and neutral at
-//   spacings x 0.95, 1 and 1.05, the low-poly male, the horse and the soldier, the synthetic arms 0-11 at muscle
-//   scales 1 and 0.2; --full: tune seeds 1-11 and the nine spacings of bench_floor_ablation). Printed, never asserted.
+// or precision little is safe to move. Last, the profiles' resolution (ProfileOptions::sampleSpacing), scaled alike.
+//   bench_floor_margins [--full] [--row KEY]   (default: tune seeds 1-4, muscular and smooth, MakeHuman muscular and
+//   neutral at spacings x 0.95, 1 and 1.05, the low-poly male, the horse and the soldier, the synthetic arms 0-11 at
+//   muscle scales 1 and 0.2; --full: tune seeds 1-11 and the nine spacings of bench_floor_ablation; --row: one row).
+//   Printed, never asserted.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -69,7 +70,12 @@ Outcome evaluate(const std::vector<Body>& bodies, const ExtractionOptions& floor
 }  // namespace
 
 int main(int argc, char** argv) {
-  const bool full = argc > 1 && std::strcmp(argv[1], "--full") == 0;
+  bool full = false;
+  std::string only;  // --row KEY: that row alone
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--full") == 0) full = true;
+    else if (std::strcmp(argv[i], "--row") == 0 && i + 1 < argc) only = argv[++i];
+  }
   ExtractionOptions base;
   base.buildSurfaces = false;
   std::vector<Body> bodies;
@@ -105,14 +111,15 @@ int main(int argc, char** argv) {
                           "filters.spindleEnds",       "filters.spindleLength",       "filters.spindleSteepness",
                           "filters.twinReach",         "link.maxLateralFactor",       "link.maxAngle",
                           "link.mergeFactor"};
-  for (const char* key : floors) {
-    const double value = expertOption(base, key);
-    std::printf("%-28s %7.4g", key, value);
+  // One row: the value scaled by each factor through `set` (which may throw InputError for a value out of range).
+  auto row = [&](const char* label, double value, auto set) {
+    if (!only.empty() && only != label) return;
+    std::printf("%-28s %7.4g", label, value);
     for (double f : {0.9, 0.95, 1.05, 1.1}) {
       ExtractionOptions o = base;
       Outcome r;
       try {  // a value out of the option's range: refused by setExpertOption or by extractMuscles' checks
-        setExpertOption(o, key, value * f);
+        set(o, value * f);
         r = evaluate(bodies, o);
       } catch (const InputError&) {
         std::printf(" | x%.2f out of range", f);
@@ -125,6 +132,11 @@ int main(int argc, char** argv) {
     }
     std::printf("\n");
     std::fflush(stdout);
-  }
+  };
+  for (const char* key : floors)
+    row(key, expertOption(base, key), [&](ExtractionOptions& o, double v) { setExpertOption(o, key, v); });
+  // Not a floor but the profiles' resolution (no expert key: the sample count, profiles.samples, is the knob).
+  row("profiles.sampleSpacing", base.profiles.sampleSpacing,
+      [](ExtractionOptions& o, double v) { o.profiles.sampleSpacing = v; });
   return 0;
 }

@@ -1,6 +1,7 @@
 // Extraction stages 1-2: bone roles, cutting-plane families and profile sections.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -186,6 +187,43 @@ TEST(CutSections, SyntheticArmLoopsLieOnTheSkin) {
   // Determinism.
   const auto again = cutSections(c, planes);
   for (size_t i = 0; i < profiles.size(); ++i) EXPECT_TRUE(profiles[i].polygon == again[i].polygon);
+}
+
+TEST(CutSections, SampleSpacingSetsTheProfilesResolution) {
+  // The derived sample count is the loop's perimeter over ProfileOptions::sampleSpacing, within 48..400: on the arm's
+  // loops (perimeters 0.2-0.5 m) 2 mm gives 100-250 points and 4 mm half as many; a fixed count overrides it.
+  const Character c = makeSyntheticArm().character;
+  const auto planes = makeCuttingPlanes(c, classifyBones(c.skeleton));
+  ProfileOptions coarse;
+  coarse.sampleSpacing = 0.004;
+  const auto fine = cutSections(c, planes), half = cutSections(c, planes, coarse);
+  ASSERT_EQ(fine.size(), half.size());
+  int checked = 0;
+  for (size_t i = 0; i < fine.size(); ++i) {
+    if (!fine[i].ok) continue;
+    ASSERT_TRUE(half[i].ok);
+    const auto expected = [&](double spacing) {
+      return std::clamp(static_cast<int>(std::lround(fine[i].perimeter / spacing)), 48, 400);
+    };
+    EXPECT_EQ(fine[i].polygon.rows(), expected(0.002));
+    EXPECT_EQ(half[i].polygon.rows(), expected(0.004));
+    EXPECT_GT(fine[i].polygon.rows(), 80);
+    ++checked;
+  }
+  EXPECT_GT(checked, 40);
+  ProfileOptions fixed;
+  fixed.samples = 64;
+  size_t k = fine.size() / 2;
+  while (k < fine.size() && !fine[k].ok) ++k;
+  ASSERT_LT(k, fine.size());
+  const auto one = cutSections(c, {planes[k]}, fixed);
+  ASSERT_EQ(one.size(), 1u);
+  EXPECT_EQ(one[0].polygon.rows(), 64);
+  for (double bad : {0.0, -0.002, std::nan("")}) {
+    ProfileOptions o;
+    o.sampleSpacing = bad;
+    EXPECT_THROW(cutSections(c, planes, o), InputError) << bad;
+  }
 }
 
 TEST(CutSections, PlaneOutsideTheSkinIsSkippedWithAReason) {

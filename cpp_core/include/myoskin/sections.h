@@ -128,7 +128,10 @@ struct SectionProfile {
 };
 
 struct ProfileOptions {
-  int samples = 0;  // points per profile after even resampling; 0 = derived (~2 mm apart, 48..400)
+  int samples = 0;  // points per profile after even resampling; 0 = derived: one every sampleSpacing, 48..400
+  double sampleSpacing = 0.002;  // metres: the derived resampling's spacing, and that of the points on a trunk
+                                 // section's chords. A resolution, yet as decisive as the bump floor: the muscles
+                                 // found do not converge as it shrinks (README "Extraction options")
   double minRegionShare = 0.9;  // share of the loop's length that must lie on the plane's region
   double minPerimeter = 0.007;  // metres: smaller loops are skipped (extractMuscles derives it: twice the bump
                                 // floor BumpOptions::minProtrusion, the default here)

@@ -232,8 +232,8 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
     for (size_t k = 0; k <= n; ++k) {
       const size_t i = (start + k) % n;
       if (!inRegion(i)) continue;
-      if (!pts.empty() && k > 0 && !inRegion((i + n - 1) % n))  // the chord from the last kept point, ~2 mm apart
-        appendChord(pts.back(), loop.points[i], 0.002, edges.back(), loop.edges[i], pts, edges, skin);
+      if (!pts.empty() && k > 0 && !inRegion((i + n - 1) % n))  // the chord from the last kept point, sampled
+        appendChord(pts.back(), loop.points[i], o.sampleSpacing, edges.back(), loop.edges[i], pts, edges, skin);
       if (k == n) break;
       pts.push_back(loop.points[i]);
       edges.push_back(loop.edges[i]);
@@ -259,7 +259,7 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
                       std::to_string(static_cast<int>(100 * onRegion / perimeter)) + " % on it";
     return prof;
   }
-  int count = o.samples > 0 ? o.samples : std::clamp(static_cast<int>(std::lround(perimeter / 0.002)), 48, 400);
+  int count = o.samples > 0 ? o.samples : std::clamp(static_cast<int>(std::lround(perimeter / o.sampleSpacing)), 48, 400);
   if (plane.mirrorAxis && o.samples <= 0) count += count % 2;  // the -Y crossing is then a sample too
   std::vector<int> source;
   prof.polygon = resample(loop.points, count, source);
@@ -372,6 +372,9 @@ std::vector<SectionProfile> cutSections(const Character& character, const std::v
   if (vertexMask && static_cast<int>(vertexMask->size()) != nv)
     throw InputError("section vertex mask has " + std::to_string(vertexMask->size()) + " entries, the skin has " +
                      std::to_string(nv) + " vertices");
+  if (!(options.sampleSpacing > 0 && std::isfinite(options.sampleSpacing)))
+    throw InputError("profile options: sampleSpacing must be finite and > 0, got " +
+                     std::to_string(options.sampleSpacing));
   // Each vertex's dominant bone (-1 without weights).
   std::vector<int> dominant;
   if (character.hasWeights()) {
