@@ -47,7 +47,8 @@ double loopLength(const std::vector<Vec2>& pts) {
 // copies: they may be points of `pts`, which grows.
 void appendChord(const Vec2 a, const Vec2 b, double spacing, std::array<int, 2> ea, std::array<int, 2> eb,
                  std::vector<Vec2>& pts, std::vector<std::array<int, 2>>& edges, std::vector<char>& skin) {
-  const int steps = std::max(2, static_cast<int>(std::ceil((b - a).norm() / spacing)));
+  // At most as many points as a resampled profile holds (a tiny spacing must not flood the loop).
+  const int steps = static_cast<int>(std::clamp(std::ceil((b - a).norm() / spacing), 2.0, 400.0));
   for (int k = 1; k < steps; ++k) {
     pts.push_back(a + (b - a) * (static_cast<double>(k) / steps));
     edges.push_back(k * 2 < steps ? ea : eb);
@@ -259,7 +260,8 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
                       std::to_string(static_cast<int>(100 * onRegion / perimeter)) + " % on it";
     return prof;
   }
-  int count = o.samples > 0 ? o.samples : std::clamp(static_cast<int>(std::lround(perimeter / o.sampleSpacing)), 48, 400);
+  int count =
+      o.samples > 0 ? o.samples : std::clamp(static_cast<int>(std::lround(perimeter / o.sampleSpacing)), 48, 400);
   if (plane.mirrorAxis && o.samples <= 0) count += count % 2;  // the -Y crossing is then a sample too
   std::vector<int> source;
   prof.polygon = resample(loop.points, count, source);
