@@ -82,8 +82,13 @@ int main(int argc, char** argv) {
       }
       if (a.substr(0, eq) == "filters.minConfidence")  // user-facing, not an expert key
         base.filters.minConfidence = std::atof(a.c_str() + eq + 1);
-      else if (a.substr(0, eq) == "profiles.sampleSpacing")  // the profiles' resolution, no expert key either
+      else if (a.substr(0, eq) == "profiles.sampleSpacing") {  // the profiles' resolution, no expert key either
         base.profiles.sampleSpacing = std::atof(a.c_str() + eq + 1);
+        if (!(base.profiles.sampleSpacing > 0)) {
+          std::fprintf(stderr, "profiles.sampleSpacing must be > 0, got %s\n", a.c_str() + eq + 1);
+          return 2;
+        }
+      }
       else
         setExpertOption(base, a.substr(0, eq), std::atof(a.c_str() + eq + 1));
     }

@@ -1,6 +1,7 @@
 // How sensitive the muscles found are to each load-bearing extraction floor (issue 13, item 6: floors with margin).
 // Each floor is scaled by x 0.9, 0.95, 1.05 and 1.1; per factor: how many characters of the tuning set find other
-// muscles (count or names), the mean recall and precision over the generated muscular bodies and arms (true muscles
+// muscles (count or names) and of them how many another count (names alone flip where a muscle lies near the boundary
+// between two facings, e.g. a forearm's top and outer), the mean recall and precision over the generated muscular bodies and arms (true muscles
 // known; a mean over bodies, each arm and body weighing the same; a body where nothing is found has precision 1), the
 // muscles found on the smooth bodies (false alarms), and MakeHuman muscular / neutral at the sweep's spacing x 1 (1/80
 // of the bounding box, where the automatic spacing, 1/80 of the principal extent, gives 20 / 6). A floor that changes
@@ -37,6 +38,7 @@ struct Body {
 
 struct Outcome {
   std::vector<std::string> signature;  // per body: muscle count and sorted names
+  std::vector<int> counts;             // per body: muscle count
   double recall = 0, precision = 0;    // means over the bodies with true muscles
   int falseAlarms = 0;                 // muscles on the smooth bodies
   int muscular = -1, neutral = -1;     // MakeHuman at the sweep's spacing x 1
@@ -55,6 +57,7 @@ Outcome evaluate(const std::vector<Body>& bodies, const ExtractionOptions& floor
     std::string s = std::to_string(names.size());
     for (const std::string& n : names) s += " " + n;
     out.signature.push_back(s);
+    out.counts.push_back(static_cast<int>(names.size()));
     if (b.smooth) out.falseAlarms += static_cast<int>(r.muscles.size());
     if (!b.truth.empty()) {
       const ExtractionAccuracy acc = measureExtraction(r.muscles, b.truth);
@@ -70,11 +73,31 @@ Outcome evaluate(const std::vector<Body>& bodies, const ExtractionOptions& floor
 }  // namespace
 
 int main(int argc, char** argv) {
+  const char* floors[] = {"bumps.minProtrusion",       "bumps.minRelativeProtrusion", "bumps.maxWidthFraction",
+                          "sectionBumps.weakFraction", "sectionBumps.faintFraction",  "sectionBumps.faintRelative",
+                          "filters.minEvidence",       "filters.minRelative",         "filters.continuousEvidence",
+                          "filters.spindleEnds",       "filters.spindleLength",       "filters.spindleSteepness",
+                          "filters.twinReach",         "link.maxLateralFactor",       "link.maxAngle",
+                          "link.mergeFactor"};
+  const char* resolution = "profiles.sampleSpacing";  // the last row, not an expert key
   bool full = false;
   std::string only;  // --row KEY: that row alone
   for (int i = 1; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--full") == 0) full = true;
-    else if (std::strcmp(argv[i], "--row") == 0 && i + 1 < argc) only = argv[++i];
+    if (std::strcmp(argv[i], "--full") == 0) {
+      full = true;
+    } else if (std::strcmp(argv[i], "--row") == 0 && i + 1 < argc) {
+      only = argv[++i];
+      bool known = only == resolution;
+      for (const char* key : floors) known |= only == key;
+      if (!known) {
+        std::fprintf(stderr, "bench_floor_margins: no row %s (the floors' expert keys or %s)\n", only.c_str(),
+                     resolution);
+        return 2;
+      }
+    } else {
+      std::fprintf(stderr, "usage: bench_floor_margins [--full] [--row KEY]\n");
+      return 2;
+    }
   }
   ExtractionOptions base;
   base.buildSurfaces = false;
@@ -104,13 +127,8 @@ int main(int argc, char** argv) {
   std::printf("%zu characters. Defaults: recall %.3f precision %.3f, %d muscles on smooth bodies, MakeHuman %d / %d\n",
               bodies.size(), reference.recall, reference.precision, reference.falseAlarms, reference.muscular,
               reference.neutral);
-  std::printf("per factor: characters changed, recall, precision, smooth-body muscles, MakeHuman muscular/neutral\n");
-  const char* floors[] = {"bumps.minProtrusion",       "bumps.minRelativeProtrusion", "bumps.maxWidthFraction",
-                          "sectionBumps.weakFraction", "sectionBumps.faintFraction",  "sectionBumps.faintRelative",
-                          "filters.minEvidence",       "filters.minRelative",         "filters.continuousEvidence",
-                          "filters.spindleEnds",       "filters.spindleLength",       "filters.spindleSteepness",
-                          "filters.twinReach",         "link.maxLateralFactor",       "link.maxAngle",
-                          "link.mergeFactor"};
+  std::printf("per factor: characters changed (muscles or names) / of them in count, recall, precision, smooth-body "
+              "muscles, MakeHuman muscular/neutral\n");
   // One row: the value scaled by each factor through `set` (which may throw InputError for a value out of range).
   auto row = [&](const char* label, double value, auto set) {
     if (!only.empty() && only != label) return;
@@ -125,10 +143,13 @@ int main(int argc, char** argv) {
         std::printf(" | x%.2f out of range", f);
         continue;
       }
-      int changed = 0;
-      for (size_t i = 0; i < bodies.size(); ++i) changed += r.signature[i] != reference.signature[i];
-      std::printf(" | x%.2f %2d %.3f %.3f %d %d/%d", f, changed, r.recall, r.precision, r.falseAlarms, r.muscular,
-                  r.neutral);
+      int changed = 0, recounted = 0;
+      for (size_t i = 0; i < bodies.size(); ++i) {
+        changed += r.signature[i] != reference.signature[i];
+        recounted += r.counts[i] != reference.counts[i];
+      }
+      std::printf(" | x%.2f %2d/%2d %.3f %.3f %d %d/%d", f, changed, recounted, r.recall, r.precision, r.falseAlarms,
+                  r.muscular, r.neutral);
     }
     std::printf("\n");
     std::fflush(stdout);
@@ -136,7 +157,7 @@ int main(int argc, char** argv) {
   for (const char* key : floors)
     row(key, expertOption(base, key), [&](ExtractionOptions& o, double v) { setExpertOption(o, key, v); });
   // Not a floor but the profiles' resolution (no expert key: the sample count, profiles.samples, is the knob).
-  row("profiles.sampleSpacing", base.profiles.sampleSpacing,
+  row(resolution, base.profiles.sampleSpacing,
       [](ExtractionOptions& o, double v) { o.profiles.sampleSpacing = v; });
   return 0;
 }

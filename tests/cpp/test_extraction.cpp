@@ -528,6 +528,9 @@ TEST(Measured, DeterministicAndUserControl) {
   o.filters.minConfidence = 1.01;  // out of range
   EXPECT_THROW(extractMuscles(arm.character, o), InputError);
   o.filters.minConfidence = 0.5;
+  o.profiles.sampleSpacing = 0.0;  // refused before any work, as cutSections would
+  EXPECT_THROW(extractMuscles(arm.character, o), InputError);
+  o.profiles.sampleSpacing = ProfileOptions{}.sampleSpacing;
   // A peak-magnitude floor only removes muscles: no belly stands out half its section's radius, and every
   // significant bump stands out at least minProtrusion (3.5 mm), over 5 % of these sections' radius. (The spindle
   // rule keeps closed spindles below the floor: off here; 5 of the arm's 6 muscles are such spindles. A continuous

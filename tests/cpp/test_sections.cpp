@@ -219,7 +219,7 @@ TEST(CutSections, SampleSpacingSetsTheProfilesResolution) {
   const auto one = cutSections(c, {planes[k]}, fixed);
   ASSERT_EQ(one.size(), 1u);
   EXPECT_EQ(one[0].polygon.rows(), 64);
-  for (double bad : {0.0, -0.002, std::nan("")}) {
+  for (double bad : {0.0, -0.002, std::nan(""), HUGE_VAL}) {
     ProfileOptions o;
     o.sampleSpacing = bad;
     EXPECT_THROW(cutSections(c, planes, o), InputError) << bad;

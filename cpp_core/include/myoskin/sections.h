@@ -152,7 +152,7 @@ struct ProfileOptions {
 // clipRadius of the origin (at least clipRadius long), closed by a straight chord (onSkin 0 there);
 // made counter-clockwise and resampled evenly starting on the +Y axis. `vertexMask` (#V, optional) marks the
 // profile points on masked skin (inMask); a section with no masked point is skipped. Parallel over planes,
-// deterministic. Throws InputError for a mask of the wrong size.
+// deterministic. Throws InputError for a mask of the wrong size or a sampleSpacing that is not finite and > 0.
 std::vector<SectionProfile> cutSections(const Character& character, const std::vector<CuttingPlane>& planes,
                                         const ProfileOptions& options = {},
                                         const std::vector<char>* vertexMask = nullptr);

@@ -28,8 +28,8 @@ struct ExpertField {
 #define MYOSKIN_INT(path) MYOSKIN_FIELD(path, int, 'i')
 #define MYOSKIN_BOOL(path) MYOSKIN_FIELD(path, bool, 'b')
 
-// Every expert option (the user-facing five, planes.spacing and the derived link.faint* and profiles.minPerimeter
-// left out).
+// Every expert option (the user-facing five, planes.spacing, the derived link.faint* and profiles.minPerimeter, and
+// profiles.sampleSpacing, a resolution that profiles.samples overrides, left out).
 const std::vector<ExpertField>& expertFields() {
   static const std::vector<ExpertField> table = {
     MYOSKIN_DOUBLE(planes.endMargin),

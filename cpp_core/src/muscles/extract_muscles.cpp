@@ -78,6 +78,8 @@ void validateExtraction(const Character& character, const ExtractionOptions& opt
           "sectionBumps.faintRelative must be in [0, 1]");
   require(options.bumps.minProtrusion >= 0 && std::isfinite(options.bumps.minProtrusion),
           "bumps.minProtrusion must be finite and >= 0 (it also sets the smallest section loop: twice it)");
+  require(options.profiles.sampleSpacing > 0 && std::isfinite(options.profiles.sampleSpacing),
+          "profiles.sampleSpacing must be finite and > 0");
   require(options.filters.minRelative >= 0, "filters.minRelative must be >= 0");
   require(options.filters.minEvidence >= 0, "filters.minEvidence must be >= 0");
   require(options.filters.continuousEvidence >= 0, "filters.continuousEvidence must be >= 0");

@@ -47,8 +47,8 @@ double loopLength(const std::vector<Vec2>& pts) {
 // copies: they may be points of `pts`, which grows.
 void appendChord(const Vec2 a, const Vec2 b, double spacing, std::array<int, 2> ea, std::array<int, 2> eb,
                  std::vector<Vec2>& pts, std::vector<std::array<int, 2>>& edges, std::vector<char>& skin) {
-  // At most as many points as a resampled profile holds (a tiny spacing must not flood the loop).
-  const int steps = static_cast<int>(std::clamp(std::ceil((b - a).norm() / spacing), 2.0, 400.0));
+  // Bounded, so a tiny spacing cannot flood the loop (far beyond any chord at a useful spacing).
+  const int steps = static_cast<int>(std::clamp(std::ceil((b - a).norm() / spacing), 2.0, 1e5));
   for (int k = 1; k < steps; ++k) {
     pts.push_back(a + (b - a) * (static_cast<double>(k) / steps));
     edges.push_back(k * 2 < steps ? ea : eb);
@@ -127,9 +127,9 @@ Points2 resample(const std::vector<Vec2>& pts, int count, std::vector<int>& sour
 // One section
 // ============================================================================
 
-// One sample spacing of a resampled profile (its loop's length over its samples; 0 when it has none): mirrored samples
-// within it count as matching (the resampling's own resolution).
-double sampleSpacing(const SectionProfile& p) {
+// The actual sample spacing of a resampled profile (its loop's length over its samples; 0 when it has none): mirrored
+// samples within it count as matching (the resampling's own resolution).
+double actualSpacing(const SectionProfile& p) {
   return p.polygon.rows() > 0 ? p.perimeter / static_cast<double>(p.polygon.rows()) : 0.0;
 }
 
@@ -260,8 +260,9 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
                       std::to_string(static_cast<int>(100 * onRegion / perimeter)) + " % on it";
     return prof;
   }
+  // One sample every sampleSpacing, 48..400 (clamped before the cast: a tiny spacing cannot overflow).
   int count =
-      o.samples > 0 ? o.samples : std::clamp(static_cast<int>(std::lround(perimeter / o.sampleSpacing)), 48, 400);
+      o.samples > 0 ? o.samples : static_cast<int>(std::clamp(std::round(perimeter / o.sampleSpacing), 48.0, 400.0));
   if (plane.mirrorAxis && o.samples <= 0) count += count % 2;  // the -Y crossing is then a sample too
   std::vector<int> source;
   prof.polygon = resample(loop.points, count, source);
@@ -276,7 +277,7 @@ SectionProfile cutOne(const Character& c, const CuttingPlane& plane, const Profi
       const int j = (count - k) % count;
       worst = std::max(worst, std::hypot(prof.polygon(k, 0) + prof.polygon(j, 0), prof.polygon(k, 1) - prof.polygon(j, 1)));
     }
-    if (worst <= sampleSpacing(prof)) {
+    if (worst <= actualSpacing(prof)) {
       for (int k = 0; k <= count / 2; ++k) {
         const int j = (count - k) % count;
         const double x = 0.5 * (prof.polygon(k, 0) - prof.polygon(j, 0)), y = 0.5 * (prof.polygon(k, 1) + prof.polygon(j, 1));
@@ -333,7 +334,7 @@ void mirrorTwins(const std::vector<CuttingPlane>& planes, std::vector<SectionPro
   for (size_t i = 0; i < planes.size(); ++i) {
     const CuttingPlane& a = planes[i];
     if (a.mirrorAxis || taken[i] || !out[i].ok || !out[i].onSkin.empty() || out[i].polygon.rows() == 0) continue;
-    const double tolerance = sampleSpacing(out[i]);
+    const double tolerance = actualSpacing(out[i]);
     for (size_t j = i + 1; j < planes.size(); ++j) {
       const CuttingPlane& b = planes[j];
       if (taken[j] || b.family != a.family || b.familyIndex == a.familyIndex || b.order != a.order) continue;
