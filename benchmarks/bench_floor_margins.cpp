@@ -1,12 +1,13 @@
 // How sensitive the muscles found are to each load-bearing extraction floor (issue 13, item 6: floors with margin).
 // Each floor is scaled by x 0.9, 0.95, 1.05 and 1.1; per factor: how many characters of the tuning set find other
 // muscles (count or names) and of them how many another count (names alone flip where a muscle lies near the boundary
-// between two facings, e.g. a forearm's top and outer), the mean recall and precision over the generated muscular bodies and arms (true muscles
-// known; a mean over bodies, each arm and body weighing the same; a body where nothing is found has precision 1), the
-// muscles found on the smooth bodies (false alarms), and MakeHuman muscular / neutral at the sweep's spacing x 1 (1/80
-// of the bounding box, where the automatic spacing, 1/80 of the principal extent, gives 20 / 6). A floor that changes
-// many characters at 5 % sits on decisions a character nobody tuned on may fall either side of; one that changes recall
-// or precision little is safe to move. Last, the profiles' resolution (ProfileOptions::sampleSpacing), scaled alike.
+// between two facings, e.g. a forearm's top and outer), the mean recall and precision over the generated muscular
+// bodies and arms (true muscles known; a mean over bodies, each arm and body weighing the same; a body where nothing is
+// found has precision 1), the muscles found on the smooth bodies (false alarms), and MakeHuman muscular / neutral at
+// the sweep's spacing x 1 (1/80 of the bounding box, where the automatic spacing, 1/80 of the principal extent, gives
+// 20 / 6). A floor that changes many characters at 5 % sits on decisions a character nobody tuned on may fall either
+// side of; one that changes recall or precision little is safe to move. Last, the profiles' resolution
+// (ProfileOptions::sampleSpacing), scaled alike.
 //   bench_floor_margins [--full] [--row KEY]   (default: tune seeds 1-4, muscular and smooth, MakeHuman muscular and
 //   neutral at spacings x 0.95, 1 and 1.05, the low-poly male, the horse and the soldier, the synthetic arms 0-11 at
 //   muscle scales 1 and 0.2; --full: tune seeds 1-11 and the nine spacings of bench_floor_ablation; --row: one row).

@@ -760,8 +760,8 @@ TEST(Measured, MakeHumanAnatomicalGroups) {
   // there lie at up -0.74 to -0.94, the neutral body's at up -0.71 to -0.76), pectorals 1 + 1, quadriceps
   // 1 + 1 (planes 3-9 of the thigh, 0.056-0.085 of its radius, mean 0.067: under minRelative 0.09, kept as a
   // continuous chain, held to one bump's floor 0.05: ChainFilterOptions::continuousEvidence) and calves 1 + 1 (the
-  // gastrocnemius below the knee, planes 17-22, its apex alternating between the two heads: two fragments of evidence 5.1 and 2.3 merged,
-  // LinkOptions::mergeAlternating). Over spacings x 0.9-1.1 the quadriceps are found at every one, the calves at
+  // gastrocnemius below the knee, planes 17-22, its apex alternating between the two heads: two fragments of evidence
+  // 5.1 and 2.3 merged, LinkOptions::mergeAlternating). Over spacings x 0.9-1.1 the quadriceps are found at every one, the calves at
   // x 0.9-1.025 except x 0.925. Not found: the deltoid's top over the joint (the clipped shoulder01 profiles' cap
   // bump encloses the bone; the upperarm01 planes' loops run into the trunk and are skipped).
   for (const char* g : {"biceps", "triceps", "deltoid", "pectoral", "quadriceps", "calf"}) {
