@@ -1,8 +1,8 @@
 // Which chain-filter floors still decide anything (issue 13, item 6: few knobs): extraction with expert options
 // overridden from the command line, over the tune characters (generated seeds, muscular and smooth, biped and
 // quadruped), MakeHuman muscular and neutral at plane spacings x 0.9-1.1 and the shared characters at their defaults.
-// One line per character: its muscle count, matched true muscles, names, and a checksum of the root curves, so two runs
-// are compared with diff. Printed, never asserted; tune seeds only (held-out seeds are the tests').
+// One line per character: its muscle count, matched and true muscles (generated characters), names, and a checksum of
+// the root curves, so two runs are compared with diff. Printed, never asserted; tune seeds only unless --heldout.
 //   bench_floor_ablation [--seeds FIRST LAST] [--heldout] [--generated] [--arms] [--records] [key=value ...]   (default
 //   seeds 1-11; keys: expertOptions(), filters.minConfidence and profiles.sampleSpacing). --arms: the synthetic arms
 //   instead (seeds 0-11 at muscle scales 1, 0.2, 0.1 and 0: the arm tests' tuned and held-out seeds, faint and smooth
@@ -37,7 +37,8 @@ void report(const std::string& set, const Character& c, const std::vector<TrueMu
   }
   std::sort(names.begin(), names.end());
   const int matched = truth.empty() ? 0 : measureExtraction(r.muscles, truth).matched;
-  std::printf("%-34s found %2zu matched %2d sum %.4f :", set.c_str(), r.muscles.size(), matched, sum);
+  std::printf("%-34s found %2zu matched %2d true %2zu sum %.4f :", set.c_str(), r.muscles.size(), matched, truth.size(),
+              sum);
   for (const std::string& n : names) std::printf(" %s", n.c_str());
   std::printf("\n");
   if (records)
