@@ -30,6 +30,12 @@ _refuse_a_core_this_numpy_breaks()
 import _core  # noqa: E402  (the compiled module, staged in the add-on folder)
 
 
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers", "figures: measures the core's figures over many generated or shared characters; the interpreter does "
+        "not change them, so the second Python's tier (tests/CMakeLists.txt, myoskin_python_tier) leaves them out")
+
+
 def shared(relative):
     """Path of a file under ../shared, or skip the test with a clear message when it is absent."""
     path = os.path.join(SHARED_DIR, relative)

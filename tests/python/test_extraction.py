@@ -269,6 +269,7 @@ def _nearest_true_muscle(truth, muscle):
         [np.min(np.linalg.norm(np.asarray(t["center_line"]) - p, axis=1)) for p in centres]))
 
 
+@pytest.mark.figures
 def test_anatomical_names_agree_with_the_generators_truth(core):
     """Held-out generated bodies (seeds 20-23, biped and quadruped): a muscle named for its place (biceps.L,
     calf.R, ...) lies nearest a true muscle of that name and side (the generator's brachialis, in front of the
@@ -298,6 +299,7 @@ REGION_NAME = re.compile(r"^(?:(upper_arm|forearm|hand|thigh|shin|foot|shoulder|
                          r"|chest|back|belly|flank)$")
 
 
+@pytest.mark.figures
 def test_muscles_no_place_names_anatomically_are_named_by_region_and_side(core):
     """Held-out generated bodies (seeds 20-23, biped and quadruped): every muscle has an anatomical or a region name
     (forearm_front.L, shin_outer.R, flank.L: never the bone and its axis), and a limb region names the segment and

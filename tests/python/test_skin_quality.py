@@ -97,6 +97,7 @@ def test_held_out_soldier_elbow_and_knee_within_dqs(core):
         assert r["crossings_myoskin_pv"] <= r["crossings_lbs"], r["label"]
 
 
+@pytest.mark.figures
 def test_generated_biped_elbow_and_knee(core):
     """A held-out generated body (seed 21; the generator's acceptance seeds are 20-27): Z up, facing -Y."""
     character, _truth = core.make_synthetic_body(seed=21)
@@ -161,6 +162,7 @@ def test_volume_keys_keep_the_joints_of_characters_nobody_here_made(core, name, 
         assert rows["hind hock"]["myoskin_vk"] > -0.02
 
 
+@pytest.mark.figures
 def test_volume_keys_keep_held_out_generated_bipeds_joints(core):
     """Issue 14 item 3 on the generated bipeds nothing was tuned on (seeds 20-27): elbow and knee 120, shoulder
     abduction 90 degrees (their hips lie deeper inside the pelvis than 1.5 body limb radii from any skin: the band
@@ -182,6 +184,7 @@ def test_volume_keys_keep_held_out_generated_bipeds_joints(core):
     assert per_seed[20] == per_seed[21] == per_seed[26] == 3
 
 
+@pytest.mark.figures
 @pytest.mark.parametrize("seed", [26, 27])
 def test_held_out_biped_calves_span_the_ankle_and_bulge_on_plantar_flexion(core, seed):
     """Issue 14 items 1-2, calves to the heel (EndOptions::spanDistal), on generated bipeds nothing was tuned on
