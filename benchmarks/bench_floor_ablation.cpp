@@ -26,7 +26,7 @@ namespace {
 
 bool records = false;  // --records: every chain record (family, verdict, bone, significance, height, planes)
 
-// One character's line: count, matched, sorted names, root-curve checksum (in limb radii, so scale-free).
+// One character's line: count, matched, true, sorted names, root-curve checksum (in limb radii, so scale-free).
 void report(const std::string& set, const Character& c, const std::vector<TrueMuscle>& truth, const ExtractionOptions& o) {
   const ExtractionResult r = extractMuscles(c, o);
   std::vector<std::string> names;

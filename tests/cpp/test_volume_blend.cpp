@@ -530,33 +530,62 @@ TEST(VolumeKeys, SoldierJointsKeepTheirVolumeWithoutFoldingAndRestIsExact) {
   EXPECT_EQ(measured, 2);
 }
 
-TEST(VolumeKeys, FittedOnBindsSkinTheSameOnAnyThreadCount) {
-  // Bind's skin (a generated biped's extracted muscles as joints, their hybrid weights, the shares): the keys sit on
-  // limb joints, move the skin at most maxOffset limb radii, and come out bit-identical on one thread and on all.
+namespace {
+
+// Bind's skin on a generated biped (seed 3): its extracted muscles as joints, their hybrid weights, the shares.
+struct BoundBiped {
+  Character character;
+  ExtractionResult extracted;
+  MuscleRig rig;
+  SkinWeights hybrid;
+  Eigen::VectorXd share;
+};
+
+BoundBiped boundBiped() {
   SyntheticBodyOptions bo;
   bo.seed = 3;
-  const Character c = makeSyntheticBody(bo).character;
-  const ExtractionResult extracted = extractMuscles(c);
-  ASSERT_GE(extracted.muscles.size(), 4u);
-  const MuscleRig rig(c.skeleton, extracted.muscles);
-  const SkinWeights hybrid = computeHybridWeights(c.mesh, c.weights, rig);
-  const Eigen::VectorXd share = computeDqsShare(c.skeleton, c.weights, c.mesh);
+  Character c = makeSyntheticBody(bo).character;
+  ExtractionResult extracted = extractMuscles(c);
+  MuscleRig rig(c.skeleton, extracted.muscles);
+  SkinWeights hybrid = computeHybridWeights(c.mesh, c.weights, rig);
+  Eigen::VectorXd share = computeDqsShare(c.skeleton, c.weights, c.mesh);
+  return {std::move(c), std::move(extracted), std::move(rig), std::move(hybrid), std::move(share)};
+}
+
+}  // namespace
+
+TEST(VolumeKeys, FittedOnBindsSkinStayWithinReach) {
+  // The keys on bind's skin (the muscle joints' bands) sit on limb joints and move the skin at most maxOffset limb
+  // radii.
+  const BoundBiped b = boundBiped();
+  ASSERT_GE(b.extracted.muscles.size(), 4u);
+  const std::vector<VolumeKey> keys =
+      computeVolumeKeys(b.character.skeleton, b.character.weights, b.character.mesh, b.share, {}, {}, &b.rig, &b.hybrid);
+  ASSERT_FALSE(keys.empty());
+  const double reach = VolumeKeyOptions{}.maxOffset * b.extracted.report.limbRadius;
+  for (const VolumeKey& k : keys) {
+    EXPECT_TRUE(k.offsets.allFinite());
+    EXPECT_LE(k.offsets.rowwise().norm().maxCoeff(), reach * (1 + 1e-9));
+  }
+}
+
+TEST(VolumeKeys, FittedOnBindsSkinTheSameOnAnyThreadCount) {
+  // The same keys, bit-identical on one thread and on all.
+  const BoundBiped b = boundBiped();
   auto fit = [&](size_t threads) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
-    return computeVolumeKeys(c.skeleton, c.weights, c.mesh, share, {}, {}, &rig, &hybrid);
+    return computeVolumeKeys(b.character.skeleton, b.character.weights, b.character.mesh, b.share, {}, {}, &b.rig,
+                             &b.hybrid);
   };
   const std::vector<VolumeKey> one = fit(1), all = fit(std::max(2u, std::thread::hardware_concurrency()));
   ASSERT_FALSE(one.empty());
   ASSERT_EQ(one.size(), all.size());
-  const double reach = VolumeKeyOptions{}.maxOffset * extracted.report.limbRadius;
   for (size_t k = 0; k < one.size(); ++k) {
     EXPECT_EQ(one[k].bone, all[k].bone);
     EXPECT_EQ(one[k].vertices, all[k].vertices);
     EXPECT_EQ((one[k].offsets - all[k].offsets).cwiseAbs().maxCoeff(), 0.0);
     EXPECT_EQ(one[k].k1, all[k].k1);
     EXPECT_EQ(one[k].k2, all[k].k2);
-    EXPECT_TRUE(one[k].offsets.allFinite());
-    EXPECT_LE(one[k].offsets.rowwise().norm().maxCoeff(), reach * (1 + 1e-9));
   }
 }
 

@@ -32,8 +32,9 @@ import _core  # noqa: E402  (the compiled module, staged in the add-on folder)
 
 def pytest_configure(config):
     config.addinivalue_line(
-        "markers", "figures: measures the core's figures over many generated or shared characters; the interpreter does "
-        "not change them, so the second Python's tier (tests/CMakeLists.txt, myoskin_python_tier) leaves them out")
+        "markers", "figures: the core's figures over generated bodies (held-out seeds, sweeps); the second Python's "
+        "tier (tests/CMakeLists.txt, myoskin_python_tier) leaves them out: its core, the other Debian release's "
+        "build, is measured there on the shared characters, one held-out body and in the Blender tiers")
 
 
 def shared(relative):

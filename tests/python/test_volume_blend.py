@@ -199,8 +199,8 @@ def test_held_out_makehuman_neutral_hip_keeps_its_volume_and_the_rest_stays(core
         assert r["crossings_myoskin_vb"] <= r["crossings_myoskin_pv"], label
 
 
-@pytest.mark.figures
-@pytest.mark.parametrize("seed", [20, 22, 23, 24, 25, 26, 27])
+# Seed 20 also on the second Python's tier, whose core is the other Debian release's build (the `figures` marker).
+@pytest.mark.parametrize("seed", [20] + [pytest.param(s, marks=pytest.mark.figures) for s in (22, 23, 24, 25, 26, 27)])
 def test_held_out_generated_bipeds_keep_preserve_volumes_figures(core, seed):
     """Generated bipeds (their dual quaternions already keep elbow, knee and ankle within a few points): the volume
     blend changes no figure by more than a point and adds no crossing."""
