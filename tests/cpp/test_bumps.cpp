@@ -346,6 +346,54 @@ TEST(BumpEllipse, UnderTheSkinNearTheBelly) {
   }
 }
 
+TEST(BumpEllipse, TallBellyOnItsAxisWhateverTheRoundOff) {
+  // A narrow, tall belly exactly mirror-symmetric about the +y axis: the raw fit is taller than wide, so it is widened
+  // to maxAspect : 1 across the bump. Its centre stays on the axis, and a round-off sized turn of the section (as
+  // between Blender's import and the CLI's loader) moves it by round-off only: widening across the bump does not move
+  // the top, so the centre does not move sideways (it once moved by the whole widening, to one side or the other
+  // depending on the sign of a dot product that is zero up to round-off).
+  const int n = 240;
+  // A limb disc (R = 5 cm) united with a belly ellipse 1 cm wide (semi-axis) and 1.4 cm tall centred on its rim.
+  const double R = 0.05, bx = 0.01, ay = 0.014;
+  auto section = [&](double turn) {
+    Points2 p(n, 2);
+    for (int i = 0; i < n; ++i) {
+      const double t = 0.5 * kPi + 2 * kPi * i / n;
+      const Vec2 dir(std::cos(t), std::sin(t)), m(0.0, R);
+      const double qa = dir.x() * dir.x() / (bx * bx) + dir.y() * dir.y() / (ay * ay),
+                   qb = -2 * dir.y() * m.y() / (ay * ay), qc = m.y() * m.y() / (ay * ay) - 1;
+      const double disc = qb * qb - 4 * qa * qc;
+      const double r = disc >= 0 ? std::max(R, (-qb + std::sqrt(disc)) / (2 * qa)) : R;
+      p.row(i) << r * dir.x(), r * dir.y();
+    }
+    for (int k = 1; k < n / 2; ++k) p.row(n - k) << -p(k, 0), p(k, 1);  // exact mirror pairs
+    const Eigen::Matrix2d rot = Eigen::Rotation2Dd(turn).toRotationMatrix();
+    return Points2((p * rot.transpose()).eval());
+  };
+  const Points2 p = section(0.0);
+  const SectionTriangulation t = triangulateSection(p);
+  const std::vector<Bump> bumps = findBumps(p, {}, &t);
+  ASSERT_EQ(bumps.size(), 1u);
+  const Ellipse2 e = fitBumpEllipse(p, bumps[0], t);
+  std::printf("tall belly: centre (%.6f, %.6f), a %.5f b %.5f, angle %.3f\n", e.center.x(), e.center.y(), e.a, e.b,
+              e.angle);
+  EXPECT_LE(e.a, 1.2 * e.b * (1 + 1e-9));
+  EXPECT_NEAR(e.center.x(), 0.0, 1e-9);
+  int turns = 0;
+  for (double turn : {1e-9, -1e-9, 3e-7}) {
+    const Points2 q = section(turn);
+    const SectionTriangulation tq = triangulateSection(q);
+    const std::vector<Bump> bq = findBumps(q, {}, &tq);
+    ASSERT_EQ(bq.size(), 1u) << turn;
+    const Ellipse2 f = fitBumpEllipse(q, bq[0], tq);
+    const Vec2 back = Eigen::Rotation2Dd(-turn).toRotationMatrix() * f.center;
+    EXPECT_LT((back - e.center).norm(), 1e-6 * R) << turn;
+    EXPECT_NEAR(f.a, e.a, 1e-6 * R) << turn;
+    ++turns;
+  }
+  EXPECT_EQ(turns, 3);
+}
+
 TEST(BumpEllipse, SpikeOfRepeatedPointsGetsAFiniteEllipse) {
   // A spike whose tip is one skin point repeated (consecutive duplicate vertices; found by fuzz_bumps): the belly
   // (the arc above 35 % of the apex height) would be the repeated points alone, with no extent, so the fit keeps the

@@ -152,12 +152,15 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
     e.angle = std::atan2(u.y(), u.x());
   }
   // Muscle bellies are round-ish in section: a flatter fit (a shallow arc) is made at most maxAspect : 1
-  // by deepening it, keeping its top where it touches the skin.
+  // by deepening it, keeping its top where it touches the skin: the centre moves inward (-v) by as much as the
+  // ellipse's extent along v grows (all of the growth when axis b points outward, none when b lies along the chord),
+  // so the result is continuous in the fit's angle.
   if (e.b * kMaxAspect < e.a) {
-    const Vec2 axisB(-std::sin(e.angle), std::cos(e.angle));
-    const Vec2 out = axisB.dot(v) >= 0 ? axisB : Vec2(-axisB);
+    const Vec2 axisA(std::cos(e.angle), std::sin(e.angle)), axisB(-axisA.y(), axisA.x());
     const double grow = e.a / kMaxAspect - e.b;
-    e.center -= grow * out;
+    const double before = std::hypot(e.a * axisA.dot(v), e.b * axisB.dot(v));
+    const double after = std::hypot(e.a * axisA.dot(v), (e.b + grow) * axisB.dot(v));
+    e.center -= (after - before) * v;
     e.b += grow;
   }
   // Under the skin: shrink about the centre (and pull the centre inward) until the ellipse is inside.
