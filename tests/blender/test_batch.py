@@ -150,10 +150,11 @@ def cli_and_batch_muscles(relative, bind):
     return arm, ours, theirs, radius
 
 
-def assert_same_muscles(label, ours, theirs, radius, tolerance=0.01, same_sections=True):
-    """The same muscle names, and per muscle as many sections and root-curve points. Positions: the muscles
-    more than `tolerance` of the limb radius apart are printed, not asserted (issue 13 asks 1 %; left: muscle
-    ends and a few sections still differ, see the branch cli-matches-blender)."""
+def assert_same_muscles(label, ours, theirs, radius, tolerance=0.01, same_sections=True, same_places=False):
+    """The same muscle names, and per muscle as many sections and root-curve points. Positions (issue 13 asks 1 %
+    of the limb radius): asserted with `same_places`, else the muscles more than `tolerance` apart are printed
+    (left on the MakeHuman bodies: a pectoral whose section base fit takes one skin point within its tolerance or
+    not, by round-off, and the neutral body's calf ends)."""
     assert len(ours) == len(theirs), f"{label}: add-on {len(ours)} muscles, CLI {len(theirs)}"
     assert set(ours) == set(theirs), (f"{label}: only in the add-on {sorted(set(ours) - set(theirs))}, "
                                       f"only in the CLI {sorted(set(theirs) - set(ours))}")
@@ -172,6 +173,7 @@ def assert_same_muscles(label, ours, theirs, radius, tolerance=0.01, same_sectio
     print(f"  {label}: add-on and CLI {len(ours)} muscles each; sections within {worst.get('centers', 0):.2e}, "
           f"root curves within {worst.get('root_curve', 0):.2e} (limb radius {radius:.4g}); more than "
           f"{tolerance:.0%} of it apart: {over}")
+    assert not (same_places and over), f"{label}: more than {tolerance:.0%} of the limb radius apart: {over}"
 
 
 def test_batch_glb_input_and_the_cli_give_the_same_muscles():
@@ -189,14 +191,13 @@ def test_batch_glb_input_and_the_cli_give_the_same_muscles():
 
 def test_batch_and_the_cli_agree_on_other_characters():
     """As above (extract only) on makehuman_neutral, the Godot base mesh and woman_soldier (four meshes,
-    armature x100, whose bones Blender's importer makes 100 times too long)."""
+    armature x100, whose bones Blender's importer makes 100 times too long). The Godot body and the soldier: every
+    section and root-curve point within 1 % of the limb radius (measured within 6e-6 m)."""
     for relative in ("characters/makehuman_neutral/makehuman_neutral.glb",
                      "characters/godot_male_base_mesh_lowpoly/male_base_mesh.glb", SOLDIER):
         _arm, ours, theirs, radius = cli_and_batch_muscles(relative, bind=False)
         assert theirs, f"{relative}: the CLI found no muscles"
-        # The soldier's welded skin differs slightly between the importers (3.4 and 4.3 link one thigh muscle
-        # over 8 sections where the CLI has 6): the same muscles by name, their sections printed.
-        assert_same_muscles(os.path.basename(relative), ours, theirs, radius, same_sections=relative != SOLDIER)
+        assert_same_muscles(os.path.basename(relative), ours, theirs, radius, same_places="neutral" not in relative)
 
 
 def test_batch_character_in_four_meshes():
