@@ -353,7 +353,7 @@ TEST(BumpEllipse, TallBellyOnItsAxisWhateverTheRoundOff) {
   // the top, so the centre does not move sideways (it once moved by the whole widening, to one side or the other
   // depending on the sign of a dot product that is zero up to round-off).
   const int n = 240;
-  // A limb disc (R = 5 cm) united with a belly ellipse 1 cm wide (semi-axis) and 1.4 cm tall centred on its rim.
+  // A limb disc (R = 5 cm) united with a belly ellipse of semi-axes 1 cm across and 1.4 cm up, centred on its rim.
   const double R = 0.05, bx = 0.01, ay = 0.014;
   auto section = [&](double turn) {
     Points2 p(n, 2);
@@ -367,6 +367,7 @@ TEST(BumpEllipse, TallBellyOnItsAxisWhateverTheRoundOff) {
       p.row(i) << r * dir.x(), r * dir.y();
     }
     for (int k = 1; k < n / 2; ++k) p.row(n - k) << -p(k, 0), p(k, 1);  // exact mirror pairs
+    p(0, 0) = p(n / 2, 0) = 0.0;                                          // and the axis points on the axis
     const Eigen::Matrix2d rot = Eigen::Rotation2Dd(turn).toRotationMatrix();
     return Points2((p * rot.transpose()).eval());
   };
@@ -377,9 +378,8 @@ TEST(BumpEllipse, TallBellyOnItsAxisWhateverTheRoundOff) {
   const Ellipse2 e = fitBumpEllipse(p, bumps[0], t);
   std::printf("tall belly: centre (%.6f, %.6f), a %.5f b %.5f, angle %.3f\n", e.center.x(), e.center.y(), e.a, e.b,
               e.angle);
-  EXPECT_LE(e.a, 1.2 * e.b * (1 + 1e-9));
+  EXPECT_NEAR(e.a, 1.2 * e.b, 1e-9 * R);  // widened to the aspect limit (a fit, not the round fallback)
   EXPECT_NEAR(e.center.x(), 0.0, 1e-9);
-  int turns = 0;
   for (double turn : {1e-9, -1e-9, 3e-7}) {
     const Points2 q = section(turn);
     const SectionTriangulation tq = triangulateSection(q);
@@ -389,9 +389,7 @@ TEST(BumpEllipse, TallBellyOnItsAxisWhateverTheRoundOff) {
     const Vec2 back = Eigen::Rotation2Dd(-turn).toRotationMatrix() * f.center;
     EXPECT_LT((back - e.center).norm(), 1e-6 * R) << turn;
     EXPECT_NEAR(f.a, e.a, 1e-6 * R) << turn;
-    ++turns;
   }
-  EXPECT_EQ(turns, 3);
 }
 
 TEST(BumpEllipse, SpikeOfRepeatedPointsGetsAFiniteEllipse) {

@@ -151,10 +151,9 @@ Ellipse2 fitBumpEllipse(const Points2& polygon, const Bump& bump, const SectionT
     e.a = e.b = half;
     e.angle = std::atan2(u.y(), u.x());
   }
-  // Muscle bellies are round-ish in section: a flatter fit (a shallow arc) is made at most maxAspect : 1
-  // by deepening it, keeping its top where it touches the skin: the centre moves inward (-v) by as much as the
-  // ellipse's extent along v grows (all of the growth when axis b points outward, none when b lies along the chord),
-  // so the result is continuous in the fit's angle.
+  // Bellies are round-ish: a fit flatter than maxAspect : 1 grows its b axis to it, keeping its top where it touches
+  // the skin: the centre moves inward (-v) by as much as its extent along v grows (all of the growth when b lies along
+  // v, none when b lies along the chord, where the sign of a round-off dot product once chose a side).
   if (e.b * kMaxAspect < e.a) {
     const Vec2 axisA(std::cos(e.angle), std::sin(e.angle)), axisB(-axisA.y(), axisA.x());
     const double grow = e.a / kMaxAspect - e.b;
