@@ -166,11 +166,12 @@ def test_volume_keys_keep_the_joints_of_characters_nobody_here_made(core, name, 
 def test_volume_keys_keep_held_out_generated_bipeds_joints(core):
     """Issue 14 item 3 on the generated bipeds nothing was tuned on (seeds 20-27): elbow and knee 120, shoulder
     abduction 90 degrees (their hips lie deeper inside the pelvis than 1.5 body limb radii from any skin: the band
-    measure has nothing to measure there). Measured: 17 of the 24 joints meet the target (13 with keys fitted on the
-    skeleton's blend alone); every joint of bipeds 20, 21 and 26 does (21's shoulder -24.0 %, LBS -51.1, DQS -27.8).
-    The misses: the shoulders of 23 and 25 (every side crosses the arm into the torso, or the blend alone folds more
-    than LBS), and elbows and knees a point or two from rest where DQS keeps closer still or the blend alone folds
-    more than LBS (22, 24, 25, 27)."""
+    measure has nothing to measure there). Measured: 18 of the 24 joints meet the target; every joint of bipeds 20, 21,
+    26 and 27 does (21's shoulder -24.0 %, LBS -51.1, DQS -27.8; 27's elbow +0.1 % with LBS's 158 crossings, once its
+    elbow bends forward: `test_an_a_pose_arm_bends_forward_and_a_leg_backward`). The misses: the shoulders of 23 and
+    25 (every side crosses the arm into the torso, or the blend alone folds more than LBS), 22's elbow (the blend alone
+    folds more than LBS), and 24's elbow and the knees of 24 and 25 within 2 points of rest where DQS keeps closer
+    still."""
     met, per_seed = 0, {}
     for seed in range(20, 28):
         character, _truth = core.make_synthetic_body(seed=seed)
@@ -180,8 +181,8 @@ def test_volume_keys_keep_held_out_generated_bipeds_joints(core):
         met += per_seed[seed]
     print(f"held-out bipeds: {met} of 24 joints meet the target; per seed {per_seed}")
     assert len(per_seed) == 8
-    assert met >= 16
-    assert per_seed[20] == per_seed[21] == per_seed[26] == 3
+    assert met >= 17
+    assert per_seed[20] == per_seed[21] == per_seed[26] == per_seed[27] == 3
 
 
 @pytest.mark.figures

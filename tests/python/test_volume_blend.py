@@ -290,3 +290,39 @@ def test_shares_follow_the_body_not_its_coordinates(core, name):
         turned_knee = knee_band_change(core, other, np.asarray(turned_share), rotation @ np.asarray(facing), hinge, shin,
                                        radius)
         assert abs(turned_knee - knee) <= 1e-9, (knee, turned_knee)
+
+
+# ------------------------------------------------------------------------------------------------
+# Which way a joint bends: an arm's forward however far it hangs, a leg's knee backward
+# ------------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("seed", [20, 24, 27])
+def test_an_a_pose_arm_bends_forward_and_a_leg_backward(core, seed):
+    """The generated bipeds hang their arms 31-46 degrees below the horizontal (an A-pose) and face -Y (the
+    independent answer). Flexion alternates down a limb (hip forward, knee backward) only on a leg, a limb standing on
+    the ground: bipeds 24 and 27, whose shoulder to upper arm is a twist split, used to get the knee's backward bend at
+    the elbow (20 at the shoulder), and Bind's elbow key, fitted on that bend, swelled biped 24's elbow flexed forward
+    to +18.9 % (LBS -32.1 %; now -0.4 %)."""
+    character, _truth = core.make_synthetic_body(seed=seed)
+    names = list(character.bone_names)
+    heads, tails = np.asarray(character.bone_heads), np.asarray(character.bone_tails)
+    _share, joints = core.compute_dqs_share(character, with_joints=True)
+    facing = np.array([0.0, -1.0, 0.0])
+    swings = {}
+    for joint in joints:  # where the bone's tail moves under the joint's reference flexion
+        b = names.index(joint["bone"])
+        direction = (tails[b] - heads[b]) / np.linalg.norm(tails[b] - heads[b])
+        swings[joint["bone"]] = float(np.cross(np.asarray(joint["axis"]), direction) @ facing)
+    arm = [bone for bone in ("upper_arm.L", "forearm.L", "upper_arm.R", "forearm.R") if bone in swings]
+    assert {"forearm.L", "forearm.R", "shin.L", "shin.R"} <= set(swings), sorted(swings)
+    assert len(arm) >= 2, sorted(swings)
+    for bone in arm:
+        assert swings[bone] > 0.9, (bone, swings[bone])
+    for bone in ("shin.L", "shin.R"):
+        assert swings[bone] < -0.9, (bone, swings[bone])
+    if seed == 24:
+        muscles, _ = core.extract_muscles(character)
+        elbow = [joint for joint in skin_quality.SYNTHETIC_BODY_JOINTS if joint[0] == "elbow flexion"]
+        (row,) = skin_quality.measure(core, character, muscles, elbow, facing=tuple(facing))
+        assert row["lbs"] < -0.2
+        assert abs(row["myoskin_vk"]) <= 0.1 * abs(row["lbs"]), row["myoskin_vk"]

@@ -32,6 +32,7 @@ constexpr double kRounding = 1e-9;  // band changes this small are rounding (a b
 constexpr double kVisibleOffset = 0.01;  // volume keys: the smallest offset kept, in limb radii
 constexpr double kContactFade = 0.5;     // volume keys: the profile's fade around skin held at a contact, limb radii
 constexpr int kContactRounds = 8;        // volume keys: contact rounds per sample flexion
+constexpr double kGroundShare = 0.2;     // a limb reaching this share of the body's height above its lowest skin is a leg
 
 // ============================================================================
 // Checks
@@ -193,6 +194,24 @@ JointScan scanJoints(const Skeleton& skeleton, const SkinWeights& w, const Mesh&
   const BodyFrame frame = bodyFrame(body, joined, roles, options.up);
   const Vec3 up = frame.up, left = frame.left, facing = frame.facing;
   auto direction = [&](int b) { return Vec3((joined.bones[b].tail - joined.bones[b].head).normalized()); };
+  // Legs stand on the ground: a limb whose bones reach within kGroundShare of the body's height of its lowest skin
+  // (arms hang at 0.4-0.8 of it, legs and a horse's four at 0.02 at most, on every character measured). Only a leg's
+  // joints alternate their flexion down the limb; an arm's bend forward however far it hangs (an A-pose).
+  const Eigen::VectorXd heightOf = skin.vertices * up;
+  const double ground = heightOf.minCoeff(), height = heightOf.maxCoeff() - ground;
+  auto standsOnGround = [&](int c) {
+    int root = -1;  // the topmost limb bone at or above c
+    for (int a = c; a >= 0; a = skeleton.bones[a].parent)
+      if (roles[a] == BoneRole::Limb) root = a;
+    if (root < 0) return true;  // no limb's joint (a tail): the alternation as before
+    double lowest = std::numeric_limits<double>::infinity();
+    for (int b = 0; b < nb; ++b) {
+      int a = b;
+      while (a >= 0 && a != root) a = skeleton.bones[a].parent;
+      if (a == root) lowest = std::min({lowest, joined.bones[b].head.dot(up), joined.bones[b].tail.dot(up)});
+    }
+    return lowest <= ground + kGroundShare * height;
+  };
   std::vector<char> inSubtree(nb);
   Eigen::VectorXd blend(nv);
   scan.crossed.assign(nv, 0);    // blended across any joint or twist split (b >= minBlend)
@@ -218,8 +237,8 @@ JointScan scanJoints(const Skeleton& skeleton, const SkinWeights& w, const Mesh&
     const bool limbStart = roles[c] == BoneRole::Limb && roles[above] != BoneRole::Limb;
     if (!anyBlend || (twist[c] && !limbStart)) continue;
     // Flexion: the child swings forward (about d x facing); down a leg (downward bones, across twist splits) the
-    // joints alternate from the leg's root: hip forward, knee backward, a horse's hock forward again; a child along
-    // the facing (a foot) turns its tail down.
+    // joints alternate from the leg's root: hip forward, knee backward, a horse's hock forward again (an arm's elbow
+    // still bends forward); a child along the facing (a foot) turns its tail down.
     const Vec3 d = direction(c);
     auto realParent = [&](int b) {
       int a = skeleton.bones[b].parent;
@@ -236,7 +255,7 @@ JointScan scanJoints(const Skeleton& skeleton, const SkinWeights& w, const Mesh&
       if (axis.cross(d).dot(up) > 0.0) axis = -axis;
     } else {
       axis.normalize();
-      if (d.dot(up) < -0.5 && downAbove % 2 == 1) axis = -axis;
+      if (d.dot(up) < -0.5 && downAbove % 2 == 1 && standsOnGround(c)) axis = -axis;
     }
     RealJoint joint;
     joint.bone = c;
