@@ -296,23 +296,30 @@ def test_shares_follow_the_body_not_its_coordinates(core, name):
 # Which way a joint bends: an arm's forward however far it hangs, a leg's knee backward
 # ------------------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("seed", [20, 24, 27])
-def test_an_a_pose_arm_bends_forward_and_a_leg_backward(core, seed):
-    """The generated bipeds hang their arms 31-46 degrees below the horizontal (an A-pose) and face -Y (the
-    independent answer). Flexion alternates down a limb (hip forward, knee backward) only on a leg, a limb standing on
-    the ground: bipeds 24 and 27, whose shoulder to upper arm is a twist split, used to get the knee's backward bend at
-    the elbow (20 at the shoulder), and Bind's elbow key, fitted on that bend, swelled biped 24's elbow flexed forward
-    to +18.9 % (LBS -32.1 %; now -0.4 %)."""
-    character, _truth = core.make_synthetic_body(seed=seed)
+def flexion_swings(core, character, facing):
+    """Per measured joint (compute_dqs_share's joints): where its bone's tail moves under the joint's reference
+    flexion (axis x bone direction), along `facing`."""
     names = list(character.bone_names)
     heads, tails = np.asarray(character.bone_heads), np.asarray(character.bone_tails)
     _share, joints = core.compute_dqs_share(character, with_joints=True)
-    facing = np.array([0.0, -1.0, 0.0])
     swings = {}
-    for joint in joints:  # where the bone's tail moves under the joint's reference flexion
+    for joint in joints:
         b = names.index(joint["bone"])
         direction = (tails[b] - heads[b]) / np.linalg.norm(tails[b] - heads[b])
-        swings[joint["bone"]] = float(np.cross(np.asarray(joint["axis"]), direction) @ facing)
+        swings[joint["bone"]] = float(np.cross(np.asarray(joint["axis"]), direction) @ np.asarray(facing))
+    return swings
+
+
+@pytest.mark.parametrize("seed", [20, 24, 27])
+def test_an_a_pose_arm_bends_forward_and_a_leg_backward(core, seed):
+    """The generated bipeds hang their arms 31-46 degrees below the horizontal (an A-pose) and face -Y (the
+    independent answer: their feet and heads point there). Flexion alternates down a limb (hip forward, knee backward)
+    only on a leg, a limb whose skin reaches the ground: bipeds 24, 26 and 27, whose shoulder to upper arm is a twist
+    split, used to get the knee's backward bend at the elbow (20 at the shoulder and its right elbow), and Bind's elbow
+    key, fitted on that bend, added volume to biped 24's elbow flexed forward: +2.5 % at 120 degrees where the blend
+    alone keeps -0.4 % (now no key: -0.4 %)."""
+    character, _truth = core.make_synthetic_body(seed=seed)
+    swings = flexion_swings(core, character, (0.0, -1.0, 0.0))
     arm = [bone for bone in ("upper_arm.L", "forearm.L", "upper_arm.R", "forearm.R") if bone in swings]
     assert {"forearm.L", "forearm.R", "shin.L", "shin.R"} <= set(swings), sorted(swings)
     assert len(arm) >= 2, sorted(swings)
@@ -323,6 +330,17 @@ def test_an_a_pose_arm_bends_forward_and_a_leg_backward(core, seed):
     if seed == 24:
         muscles, _ = core.extract_muscles(character)
         elbow = [joint for joint in skin_quality.SYNTHETIC_BODY_JOINTS if joint[0] == "elbow flexion"]
-        (row,) = skin_quality.measure(core, character, muscles, elbow, facing=tuple(facing))
+        (row,) = skin_quality.measure(core, character, muscles, elbow, facing=(0.0, -1.0, 0.0))
         assert row["lbs"] < -0.2
-        assert abs(row["myoskin_vk"]) <= 0.1 * abs(row["lbs"]), row["myoskin_vk"]
+        assert abs(row["myoskin_vk"]) <= 0.01, row["myoskin_vk"]
+        assert row["myoskin_vk"] <= row["myoskin_vb"] + 1e-3, (row["myoskin_vk"], row["myoskin_vb"])
+
+
+def test_a_horses_legs_alternate(core):
+    """Quaternius' horse (held out; Y up, facing +Z): all four legs stand on the ground, so their joints alternate:
+    the front knee bends backward and the hind hock forward (skin_quality.HORSE_JOINTS bend them so)."""
+    character = core.load_character(shared("characters/quaternius_horse/horse.glb"), require_weights=True)
+    swings = flexion_swings(core, character, (0.0, 0.0, 1.0))
+    for side in (".L", ".R"):
+        assert swings["FrontLowerLeg" + side] < -0.9, swings
+        assert swings["BackLowerLeg" + side] > 0.9, swings

@@ -27,8 +27,9 @@ class MuscleRig;  // deformation.h
 
 struct VolumeBlendOptions {
   // Reference flexion of each joint, in degrees: the joint's child subtree turns about the joint by this angle
-  // (forward, about d x facing, d the child bone's direction; down a leg the joints alternate from its root: hip
-  // forward, knee backward, a horse's hock forward; a child along the facing, a foot, turns its tail down).
+  // (forward, about d x facing, d the child bone's direction; down a leg, a limb whose skin reaches the lowest fifth
+  // of the body's height, the joints alternate from its root: hip forward, knee backward, a horse's hock forward; an
+  // arm's joints bend forward however far it hangs; a child along the facing, a foot, turns its tail down).
   double bendDegrees = 90.0;
   // The joint's share is the largest whose |band change| at the reference flexion is at most the smallest any share
   // gives or keepTolerance x |linear's change|: dual quaternions are kept where they already keep the volume that

@@ -32,7 +32,7 @@ constexpr double kRounding = 1e-9;  // band changes this small are rounding (a b
 constexpr double kVisibleOffset = 0.01;  // volume keys: the smallest offset kept, in limb radii
 constexpr double kContactFade = 0.5;     // volume keys: the profile's fade around skin held at a contact, limb radii
 constexpr int kContactRounds = 8;        // volume keys: contact rounds per sample flexion
-constexpr double kGroundShare = 0.2;     // a limb reaching this share of the body's height above its lowest skin is a leg
+constexpr double kGroundShare = 0.2;  // a limb whose skin reaches this share of the body height above its lowest: a leg
 
 // ============================================================================
 // Checks
@@ -194,22 +194,32 @@ JointScan scanJoints(const Skeleton& skeleton, const SkinWeights& w, const Mesh&
   const BodyFrame frame = bodyFrame(body, joined, roles, options.up);
   const Vec3 up = frame.up, left = frame.left, facing = frame.facing;
   auto direction = [&](int b) { return Vec3((joined.bones[b].tail - joined.bones[b].head).normalized()); };
-  // Legs stand on the ground: a limb whose bones reach within kGroundShare of the body's height of its lowest skin
-  // (arms hang at 0.4-0.8 of it, legs and a horse's four at 0.02 at most, on every character measured). Only a leg's
-  // joints alternate their flexion down the limb; an arm's bend forward however far it hangs (an A-pose).
+  // Legs stand on the ground: a limb whose skin (the vertices weighted most to its bones and the bones below them)
+  // reaches within kGroundShare of the body's height of the body's lowest skin (arms stay at 0.41-0.77 of it, legs
+  // reach 0.08 at most, a horse's four included, on every character measured). Only a leg's joints alternate their
+  // flexion down the limb; an arm's joints bend forward however far it hangs (an A-pose). A lone arm hanging down is
+  // its own lowest skin: a leg.
   const Eigen::VectorXd heightOf = skin.vertices * up;
   const double ground = heightOf.minCoeff(), height = heightOf.maxCoeff() - ground;
+  std::vector<int> strongest(nv, -1);  // each vertex's most weighted bone
+  for (int v = 0; v < nv; ++v) {
+    double most = 0.0;
+    for (int k = 0; k < w.influences(); ++k)
+      if (w.joints(v, k) >= 0 && w.weights(v, k) > most) most = w.weights(v, k), strongest[v] = w.joints(v, k);
+  }
   auto standsOnGround = [&](int c) {
-    int root = -1;  // the topmost limb bone at or above c
-    for (int a = c; a >= 0; a = skeleton.bones[a].parent)
-      if (roles[a] == BoneRole::Limb) root = a;
-    if (root < 0) return true;  // no limb's joint (a tail): the alternation as before
-    double lowest = std::numeric_limits<double>::infinity();
+    int root = c;  // the limb's first bone: up the limb bones above c
+    while (skeleton.bones[root].parent >= 0 && roles[skeleton.bones[root].parent] == BoneRole::Limb)
+      root = skeleton.bones[root].parent;
+    std::vector<char> below(nb, 0);  // root and the bones under it
     for (int b = 0; b < nb; ++b) {
       int a = b;
       while (a >= 0 && a != root) a = skeleton.bones[a].parent;
-      if (a == root) lowest = std::min({lowest, joined.bones[b].head.dot(up), joined.bones[b].tail.dot(up)});
+      below[b] = a == root;
     }
+    double lowest = std::numeric_limits<double>::infinity();
+    for (int v = 0; v < nv; ++v)
+      if (strongest[v] >= 0 && below[strongest[v]]) lowest = std::min(lowest, heightOf[v]);
     return lowest <= ground + kGroundShare * height;
   };
   std::vector<char> inSubtree(nb);
@@ -255,7 +265,7 @@ JointScan scanJoints(const Skeleton& skeleton, const SkinWeights& w, const Mesh&
       if (axis.cross(d).dot(up) > 0.0) axis = -axis;
     } else {
       axis.normalize();
-      if (d.dot(up) < -0.5 && downAbove % 2 == 1 && standsOnGround(c)) axis = -axis;
+      if (d.dot(up) < -0.5 && downAbove % 2 == 1 && (roles[c] != BoneRole::Limb || standsOnGround(c))) axis = -axis;
     }
     RealJoint joint;
     joint.bone = c;
