@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The volume blend's volume keys in Blender: one shape key per key the core computed (compute_volume_keys: rest-space
-offsets around a limb joint that give back the volume its band still loses as it bends), its value driven natively by
+offsets around a limb joint that give back the volume its band still loses as it bends, or take back what it gains), its value driven natively by
 the joint's child bone (a simple expression of the bone's Local Space quaternion, no Python):
 
     value = s (k1 + k2 s) [x max(sx (xy - wz) + sz (yz + wx), 0)^2 / max((xy - wz)^2 + (yz + wx)^2, 1e-12)],

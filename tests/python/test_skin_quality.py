@@ -166,12 +166,13 @@ def test_volume_keys_keep_the_joints_of_characters_nobody_here_made(core, name, 
 def test_volume_keys_keep_held_out_generated_bipeds_joints(core):
     """Issue 14 item 3 on the generated bipeds nothing was tuned on (seeds 20-27): elbow and knee 120, shoulder
     abduction 90 degrees (their hips lie deeper inside the pelvis than 1.5 body limb radii from any skin: the band
-    measure has nothing to measure there). Measured: 18 of the 24 joints meet the target; every joint of bipeds 20, 21,
+    measure has nothing to measure there). Measured: 19 of the 24 joints meet the target; every joint of bipeds 20, 21,
     26 and 27 does (21's shoulder -24.0 %, LBS -51.1, DQS -27.8; 27's elbow +0.1 % with LBS's 158 crossings, once its
-    elbow bends forward: `test_an_a_pose_arm_bends_forward_and_a_leg_backward`). The misses: the shoulders of 23 and
-    25 (every side crosses the arm into the torso, or the blend alone folds more than LBS), 22's elbow (the blend alone
-    folds more than LBS), and 24's elbow and the knees of 24 and 25 within 2 points of rest where DQS keeps closer
-    still."""
+    elbow bends forward: `test_an_a_pose_arm_bends_forward_and_a_leg_backward`; 27's knee +0.9 -> -0.0 % and 25's
+    +1.3 -> -0.0 % since a key also takes back volume a band gains). The misses: the shoulders of 23 and 25 (every side
+    crosses the arm into the torso, or the blend alone folds more than LBS), 22's elbow (the blend alone folds more than
+    LBS), and 24's elbow (-0.4 %, DQS -0.2) and knee (+0.4 %, DQS +0.2), where a key would move the skin by less than
+    the visible 0.01 limb radii."""
     met, per_seed = 0, {}
     for seed in range(20, 28):
         character, _truth = core.make_synthetic_body(seed=seed)
@@ -181,8 +182,37 @@ def test_volume_keys_keep_held_out_generated_bipeds_joints(core):
         met += per_seed[seed]
     print(f"held-out bipeds: {met} of 24 joints meet the target; per seed {per_seed}")
     assert len(per_seed) == 8
-    assert met >= 17
-    assert per_seed[20] == per_seed[21] == per_seed[26] == per_seed[27] == 3
+    assert met >= 19
+    assert per_seed[20] == per_seed[21] == per_seed[26] == per_seed[27] == 3 and per_seed[25] >= 2
+
+
+@pytest.mark.figures
+def test_a_volume_key_takes_back_the_volume_a_knee_gains(core):
+    """Volume keys keep the band's volume both ways: where the volume blend gains volume in a joint's band (held-out
+    biped 25's knee: the muscles over it add 1.3 points at 120 degrees, where DQS keeps 0.0), the joint's key pulls
+    the skin in along its rest normals instead of pushing it out. Measured: +1.3 % -> -0.0 %, crossings 96 (LBS
+    138)."""
+    character, _truth = core.make_synthetic_body(seed=25)
+    r = rows_by_joint(core, character, skin_quality.SYNTHETIC_BODY_JOINTS, facing=(0.0, -1.0, 0.0))["knee flexion"]
+    assert r["myoskin_vb"] > 0.005  # the blend alone gains volume here (the measure can fail)
+    assert abs(r["myoskin_vk"]) <= 0.2 * r["myoskin_vb"]
+    assert meets_joint_target(r)
+    # The knee's key moves the skin inward: its offsets point against the rest normals.
+    muscles, _ = core.extract_muscles(character)
+    rig = core.MuscleRig(character, muscles)
+    hj, hw = core.hybrid_weights(character, rig)
+    share = np.asarray(core.compute_dqs_share(character))
+    keys = [k for k in core.compute_volume_keys(character, share, rig=rig, weight_joints=hj, weight_values=hw)
+            if k["bone"].startswith("shin")]
+    assert len(keys) == 2, [k["bone"] for k in keys]
+    rest, tris = np.asarray(character.vertices), np.asarray(character.triangles)
+    normals = np.zeros_like(rest)
+    for c in range(3):
+        np.add.at(normals, tris[:, c], np.cross(rest[tris[:, 1]] - rest[tris[:, 0]], rest[tris[:, 2]] - rest[tris[:, 0]]))
+    for k in keys:
+        along = np.einsum("ij,ij->i", np.asarray(k["offsets"]), normals[np.asarray(k["vertices"])])
+        assert (along < 0).mean() > 0.9, k["bone"]
+        assert max(k["change_without"]) > 0.0 and max(abs(c) for c in k["change_with"]) < max(k["change_without"])
 
 
 @pytest.mark.figures

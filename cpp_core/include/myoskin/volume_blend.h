@@ -93,8 +93,9 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& ske
 // Volume keys
 // ============================================================================
 
-// A joint's volume key (a shape key in Blender): rest-space offsets of the skin around a real joint, outward along
-// the rest normals, that give back the volume the blend still loses in the joint's band as it bends. Its weight
+// A joint's volume key (a shape key in Blender): rest-space offsets of the skin around a real joint along the rest
+// normals that keep the band's volume as it bends: outward where the blend still loses volume there, inward where it
+// gains (the muscles over a knee thickening more than the joint collapses). Its weight
 // follows the swing of the joint's child bone, s = x^2 + z^2 = sin^2(swing / 2) of the bone's local rotation
 // quaternion (w, x, y, z) (twist about the bone moves nothing; Blender reads it with a driver on the bone's Local
 // Space quaternion):  weight = clamp(s (k1 + k2 s) g, 0, 1), s (k1 + k2 s) in [0, 1] for every swing by construction;
@@ -128,8 +129,9 @@ struct VolumeKeyOptions {
 
 // One volume key per limb joint (a real joint, as computeDqsShare's, whose bone or the real joint above it has the Limb
 // role: shoulders, elbows, wrists, hips, knees, ankles, a horse's knees and hocks; a trunk or a digit bends over many
-// bones, each joint a little) whose band still loses volume under the volume blend
-// `share` (#V, computeDqsShare's) when the joint bends about its reference flexion axis. At each sample flexion the
+// bones, each joint a little) whose band still changes volume under the volume blend
+// `share` (#V, computeDqsShare's) when the joint bends about its reference flexion axis. The key pushes out when the
+// sample with the largest change loses volume, in when it gains. At each sample flexion the
 // amplitude is the one that keeps the band's cone volume (at most maxOffset limb radii), lowered until the band has
 // no more self-intersecting triangle pairs than without the key; the weight's fit is checked the same way every 30
 // degrees. Skin that touches other skin under the push (the back of the knee, under the armpit) stays still, the
@@ -139,7 +141,8 @@ struct VolumeKeyOptions {
 // least sum of |change| (swing axes fitted in parallel on TBB's threads; the choice does not depend on them). With
 // `rig` (built on `skeleton`) and its `hybridWeights` (computeHybridWeights: #V rows over the bones, then the rig's
 // joints) the bends are Bind's skin, the muscle joints included (combinedRestMatrices, the share,
-// keyOptions.dualQuatScale): the keys give back only the volume the muscles leave lost. Deterministic. Throws
+// keyOptions.dualQuatScale): the keys give back only the volume the muscles leave lost, or take back what they add.
+// Deterministic. Throws
 // InputError on what computeDqsShare refuses, a share of the wrong size or outside [0, 1], no samples or a sample
 // outside (0, 180], maxOffset <= 0, a rig without its weights (or weights without a rig), a rig over another number of
 // bones, or hybrid weights of the wrong size or out of range.

@@ -565,6 +565,16 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   const double amax = ko.maxOffset;
   std::vector<double> s2, amplitude;
   Points base, moved;
+  // Which way the key pushes: out where the blend loses volume at the sample it changes most, in where it gains.
+  // `deficit` is the change with that sign taken off, so the fit below only ever restores a loss.
+  double direction = 1.0, mostChange = 0.0;
+  for (double degrees : ko.sampleDegrees) {
+    bent(degrees, base, moved);
+    const double c = change(base);
+    if (std::abs(c) > std::abs(mostChange)) mostChange = c;
+  }
+  if (mostChange > 0.0) direction = -1.0, profile = -profile;
+  auto deficit = [&](const Points& p) { return direction * change(p); };
   // A key that moves the skin less than kVisibleOffset limb radii changes nothing one could see (and only flips
   // contacts the bent skin already has).
   double reachOut = 0.0;
@@ -572,11 +582,11 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   const double smallest = kVisibleOffset * limbRadius / std::max(reachOut, 1e-300);
   // The amplitude that keeps the band's volume at a bend (at most amax), 0 when pushing out gives none back.
   auto restoring = [&](const Points& base, const Points& moved) {
-    const double before = change(base), most = change(base + amax * moved);
+    const double before = deficit(base), most = deficit(base + amax * moved);
     if (!(before < 0.0 && most > before)) return 0.0;
     if (most <= 0.0) return amax;
     double lo = 0.0, hi = amax;
-    for (int it = 0; it < 40; ++it) (change(base + 0.5 * (lo + hi) * moved) < 0.0 ? lo : hi) = 0.5 * (lo + hi);
+    for (int it = 0; it < 40; ++it) (deficit(base + 0.5 * (lo + hi) * moved) < 0.0 ? lo : hi) = 0.5 * (lo + hi);
     return hi;
   };
   // Contacts: skin that touches other skin under the push (the back of the knee against the calf, an arm against the
