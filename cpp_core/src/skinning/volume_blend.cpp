@@ -486,6 +486,22 @@ void muscleBandMaps(const Skeleton& skeleton, const Band& band, const MuscleSkin
   Skinner(band.rest, w, static_cast<int>(all.size()), options).vertexTransforms(all, out);
 }
 
+// Which skin of a joint's band a volume key moves, by c = n . side of its rest normal (c = 1 on the skin facing the
+// way the limb bends, the crease; -1 on the outer side): Outer swells the outer side and keeps the crease, AllRound
+// swells all round (by half), Crease swells the crease's side (a shoulder's deltoid on abduction), OuterAndCreaseIn
+// swells the outer side and draws the crease's side in (a flexed elbow's skin folding into its crease).
+enum class KeySide { Outer, AllRound, Crease, OuterAndCreaseIn };
+
+double sideFactor(KeySide keySide, double c) {
+  switch (keySide) {
+    case KeySide::Outer: return 0.5 * (1.0 - c);
+    case KeySide::AllRound: return 0.5;
+    case KeySide::Crease: return 0.5 * (1.0 + c);
+    case KeySide::OuterAndCreaseIn: return -c;
+  }
+  return 0.0;
+}
+
 // One joint's key for swings about `axis` (unit; `directional`: the key acts only on swings toward that side): the
 // offsets' profile and, per sample flexion, the amplitude that keeps the band's volume; then the weight's fit. False
 // when the band keeps its volume at every sample (no key). `holdAll`: every contact under the push is held, else only
@@ -494,16 +510,15 @@ void muscleBandMaps(const Skeleton& skeleton, const Band& band, const MuscleSkin
 bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<double>& bandBlend,
                   const Points& normals, const Eigen::VectorXd& share, const VolumeBlendOptions& o,
                   const VolumeKeyOptions& ko, const RealJoint& joint, const Vec3& axis, bool directional,
-                  double limbRadius, double sideSign, bool holdAll, const MuscleSkin& muscles, BendCache& cache,
+                  double limbRadius, KeySide keySide, bool holdAll, const MuscleSkin& muscles, BendCache& cache,
                   VolumeKey& key, int& folds, bool& held) {
   const Vec3 head = skeleton.bones[joint.bone].head;
   const double reach = o.bandRadius * limbRadius;
   const double v0 = coneVolume(band.rest, band.triangles, head);
   if (!(std::abs(v0) > 0.0)) return false;
   const int n = static_cast<int>(band.ids.size());
-  // Profile: the joint's blend b, tapered to 0 at the band's edge, times (1 - sideSign n . side) / 2, along the rest
-  // normal n, in limb radii: sideSign 1 keeps the skin facing the way the limb bends (the crease) and swells the outer
-  // side, 0 swells all round, -1 swells the crease's side (a shoulder's deltoid on abduction).
+  // Profile: the joint's blend b, tapered to 0 at the band's edge, times the side's factor of c = n . side (1 on the
+  // skin facing the way the limb bends, the crease), along the rest normal n, in limb radii (sideFactor).
   const Vec3 boneY = skeleton.bones[joint.bone].rest.block<3, 1>(0, 1).normalized();
   const Vec3 side = axis.cross(boneY).normalized();
   Points profile = Points::Zero(n, 3);
@@ -511,8 +526,8 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     const double d = (band.rest.row(i).transpose() - head).norm() / reach;
     const double taper = std::pow(std::max(0.0, 1.0 - d * d), 2);
     const Vec3 normal = normals.row(band.ids[i]).transpose();
-    const double outer = 0.5 * (1.0 - sideSign * normal.dot(side));
-    profile.row(i) = limbRadius * bandBlend[static_cast<size_t>(i)] * taper * outer * normal.transpose();
+    profile.row(i) = limbRadius * bandBlend[static_cast<size_t>(i)] * taper * sideFactor(keySide, normal.dot(side)) *
+                     normal.transpose();
   }
   // The band bent by `degrees` about `axis` under the blend: its positions, and how one unit of the profile moves it
   // (each vertex's blended affine map is linear in its input).
@@ -751,14 +766,14 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
   struct Fit {
     size_t band;
     Vec3 axis;
-    double sideSign;
+    KeySide side;
     bool holdAll;
     bool ok = false;
     int folds = 0;
     bool held = false;
     VolumeKey key;
   };
-  constexpr double kSides[] = {1.0, 0.0, -1.0};
+  constexpr KeySide kSides[] = {KeySide::Outer, KeySide::AllRound, KeySide::Crease, KeySide::OuterAndCreaseIn};
   std::vector<JointBand> bands;
   std::vector<Fit> fits;
   std::vector<int> local(static_cast<size_t>(skin.numVertices()), -1);
@@ -781,9 +796,9 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
     flexion.normalize();
     bands.push_back(std::move(jb));
     for (int quarter = 0; quarter < (joint.limbRoot ? 4 : 1); ++quarter)
-      for (double sideSign : kSides)
+      for (KeySide keySide : kSides)
         for (bool holdAll : {true, false})
-          fits.push_back(Fit{bands.size() - 1, Eigen::AngleAxisd(0.5 * kPi * quarter, boneY) * flexion, sideSign,
+          fits.push_back(Fit{bands.size() - 1, Eigen::AngleAxisd(0.5 * kPi * quarter, boneY) * flexion, keySide,
                              holdAll, false, 0, false, {}});
   }
   // In parallel per swing axis; its sides in turn, sharing the band's bends.
@@ -797,7 +812,7 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
         if (!fits[f].holdAll && !fits[f - 1].held) continue;
         const JointBand& jb = bands[fits[f].band];
         fits[f].ok = fitVolumeKey(skeleton, jb.band, jb.blend, normals, share, options, keyOptions, *jb.joint,
-                                  fits[f].axis, jb.joint->limbRoot, scan.limbRadius, fits[f].sideSign,
+                                  fits[f].axis, jb.joint->limbRoot, scan.limbRadius, fits[f].side,
                                   fits[f].holdAll, muscles, cache, fits[f].key, fits[f].folds, fits[f].held);
       }
     }
