@@ -229,7 +229,7 @@ void bindCorrectives(py::module_& m) {
       py::arg("weight_joints") = py::none(), py::arg("weight_values") = py::none(), py::arg("dq_scale") = "pivot",
       "Volume keys of the volume blend (share: compute_dqs_share's #V shares): one dict per key of a limb joint whose "
       "band still changes volume as it bends, outward where it loses, inward where it gains (bone, bone_index, vertices, offsets #n by 3 in rest space at weight 1, "
-      "k1, k2, swing (x, z) or (0, 0), axis; weight = clamp(s (k1 + k2 s) g, 0, 1), s = x^2 + z^2 of the bone's local "
+      "k1, k2, swing (x, z) or (0, 0), axis; weight = clamp(s (k1 + k2 s) g, -1, 1), s = x^2 + z^2 of the bone's local "
       "rotation quaternion, g the directional factor of volume_blend.h; sample_degrees with the band's change_without "
       "and change_with the key). rig, weight_joints and weight_values come together (the MuscleRig and its "
       "hybrid_weights, #V by K): the bends are then Bind's skin, the muscle joints included, their scale carried as "

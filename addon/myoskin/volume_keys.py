@@ -1,6 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The volume blend's volume keys in Blender: one shape key per key the core computed (compute_volume_keys: rest-space
-offsets around a limb joint that give back the volume its band still loses as it bends, or take back what it gains), its value driven natively by
+offsets around a limb joint that give back the volume its band still loses as it bends, or take back what it gains;
+its value in [-1, 1], negative where the bend moves the skin the other way), its value driven natively by
 the joint's child bone (a simple expression of the bone's Local Space quaternion, no Python):
 
     value = s (k1 + k2 s) [x max(sx (xy - wz) + sz (yz + wx), 0)^2 / max((xy - wz)^2 + (yz + wx)^2, 1e-12)],
@@ -92,7 +93,7 @@ def add_key(skin, arm, key, name, moves):
     block.relative_key.data.foreach_get("co", basis)
     co = basis.reshape(-1, 3).astype(np.float64) + moves @ to_mesh.T
     block.data.foreach_set("co", co.astype(np.float32).ravel())
-    block.slider_min, block.slider_max, block.value = 0.0, 1.0, 0.0
+    block.slider_min, block.slider_max, block.value = -1.0, 1.0, 0.0  # negative: the skin moved back
     # Blender shortens long names and renames clashes (".001"): the entry keeps the name the key really has.
     entry = {"name": block.name, "bone": key["bone"], "k1": float(key["k1"]), "k2": float(key["k2"]),
              "swing": [float(v) for v in key.get("swing", (0.0, 0.0))]}

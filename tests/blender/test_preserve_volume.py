@@ -395,10 +395,22 @@ def test_volume_keys_of_a_character_nobody_here_made_play_as_the_core_and_export
     assert not bad, bad
     frames = ((1, 0.0), (5, 70.0))
     # the upper arm swung toward the side of one of its directional keys (its tail leaning along (sx, 0, sz) in the
-    # bone's rest frame: about Y x lean), the elbow bent
+    # bone's rest frame: about Y x lean), the elbow bent, and a joint whose key's weight s (k1 + k2 s) turns negative
+    # (its band gains volume at small bends before it collapses) bent to that weight's lowest
     upper = next(e for es in entries.values() for e in es if e["bone"] == "UpperArm.L" and any(e["swing"]))
     sx, sz = upper["swing"]
-    for bone, axis, factor in (("UpperArm.L", (sz, 0.0, -sx), 1.0), ("LowerArm.L", (1.0, 0.0, 0.0), 1.5)):
+
+    def lowest(e):  # (the lowest weight over s in [0, 1], its s)
+        k1, k2 = e["k1"], e["k2"]
+        s = min(max(-k1 / (2.0 * k2), 0.0), 1.0) if k2 > 0.0 else 1.0
+        return s * (k1 + k2 * s), s
+
+    turning = sorted((lowest(e), e["bone"]) for es in entries.values() for e in es
+                     if not any(e["swing"]) and e["bone"] not in ("UpperArm.L", "LowerArm.L"))
+    assert turning and turning[0][0][0] < -0.05, turning  # a key whose weight turns negative (measured: the feet)
+    (_, s_low), low_bone = turning[0]
+    for bone, axis, factor in (("UpperArm.L", (sz, 0.0, -sx), 1.0), ("LowerArm.L", (1.0, 0.0, 0.0), 1.5),
+                               (low_bone, (1.0, 0.0, 0.0), np.degrees(2.0 * np.arcsin(np.sqrt(s_low))) / 70.0)):
         pb = arm.pose.bones[bone]
         pb.rotation_mode = 'QUATERNION'
         for frame, degrees in frames:
@@ -430,11 +442,12 @@ def test_volume_keys_of_a_character_nobody_here_made_play_as_the_core_and_export
         skinned = binding.skinner_for(m, arm, rig, rest, joints, weights_).deform(transforms)
         blender = io.evaluated_vertices(m) @ to_arm[:3, :3].T + to_arm[:3, 3]
         errors.append(float(np.abs(blender - skinned).max()) / size)
-    moved = {n: w for n, w in acting.items() if w > 0.05}
+    moved = {n: w for n, w in acting.items() if abs(w) > 0.05}
     print(f"  soldier: {sum(len(e) for e in entries.values())} volume keys ({len(directional)} directional); acting "
           f"{sorted(moved)}; drivers vs core {max(driver_errors):.1e}; Blender vs core {max(errors):.2e} of the size")
     assert driver_errors and max(driver_errors) < 1e-6, driver_errors
     assert upper["name"] in moved, acting  # the shoulder's directional key acts on the swung arm
+    assert min(acting.values()) < -0.05, acting  # Blender's shape key takes the negative weight (slider_min -1)
     assert max(errors) < TOLERANCE, errors
     # glTF export: the keys' values baked into the morph weights animation, the drivers written again afterwards
     gltf = os.path.join(TMP, "soldier.gltf")

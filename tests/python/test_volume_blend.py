@@ -185,6 +185,36 @@ def test_held_out_soldier_knee_keeps_its_volume_where_dqs_bulges(core):
     assert shoulder["crossings_myoskin_vb"] <= shoulder["crossings_lbs"]
 
 
+def test_a_key_whose_band_gains_then_loses_volume_keeps_it_at_every_sample(core):
+    """Quaternius' woman soldier (held out), Bind's keys: where the band gains volume at a small bend and loses it at a
+    deep one (the knee, the ankle, the wrist: muscles swelling before the joint collapses) the key's weight changes
+    sign with the bend, pulling the skin in, then pushing it out, so every sample keeps its volume. Measured (change
+    without -> with the key at 45 / 90 / 135 degrees): LowerLeg +7.4 / +1.7 / -13.3 -> +2.9 / -1.7 / -0.6 %, Foot
+    +6.9 / +2.8 / -15.9 -> +1.0 / -0.5 / +0.1 %, Hand +2.5 / +0.1 / -5.5 -> +0.8 / -0.3 / +0.1 %; a key that only
+    pushed out had left the gains (LowerLeg +7.8 / +5.9 / -2.4 %)."""
+    character = core.load_character(shared(SOLDIER), require_weights=True)
+    muscles, _ = core.extract_muscles(character)
+    rig = core.MuscleRig(character, muscles)
+    hj, hw = core.hybrid_weights(character, rig)
+    share = np.asarray(core.compute_dqs_share(character))
+    keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=hj, weight_values=hw)
+    mixed = [k for k in keys if max(k["change_without"]) > 0.01 and min(k["change_without"]) < -0.01]
+    assert len(mixed) >= 4, [(k["bone"], k["change_without"]) for k in keys]
+    names = list(character.bone_names)
+    for k in mixed:
+        without, with_ = np.abs(k["change_without"]), np.abs(k["change_with"])
+        assert with_.max() <= 0.5 * without.max(), (k["bone"], k["change_without"], k["change_with"])
+        assert np.all(with_ <= without + 0.005), (k["bone"], k["change_without"], k["change_with"])
+        # the weight changes sign over the bend: s (k1 + k2 s) negative for small s, positive at s = 1, or the reverse
+        assert k["k1"] * (k["k1"] + k["k2"]) < 0.0, (k["bone"], k["k1"], k["k2"])
+        rotations = np.tile([1.0, 0.0, 0.0, 0.0], (2, len(names), 1))
+        for row, degrees in enumerate((45.0, 135.0)):
+            half = np.radians(degrees) / 2
+            rotations[row, names.index(k["bone"])] = [np.cos(half), np.sin(half), 0.0, 0.0]
+        w = [core.volume_key_weights([k], rotations[row])[0] for row in range(2)]
+        assert w[0] * w[1] < 0.0 and max(abs(x) for x in w) <= 1.0, (k["bone"], w)
+
+
 def test_held_out_makehuman_neutral_hip_keeps_its_volume_and_the_rest_stays(core):
     """makehuman_neutral: hip flexion 90 LBS -40.8 %, DQS +9.0 %, +PV +9.0 %; the volume blend -1.3 % (measured)."""
     character = core.load_character(shared(NEUTRAL), require_weights=True)

@@ -580,8 +580,8 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   const double amax = ko.maxOffset;
   std::vector<double> s2, amplitude;
   Points base, moved;
-  // Which way the key pushes: out where the blend loses volume at the sample it changes most, in where it gains.
-  // `deficit` is the change with that sign taken off, so the fit below only ever restores a loss.
+  // Which way the profile points: out where the blend loses volume at the sample it changes most, in where it gains.
+  // `deficit` is the change with that sign taken off: negative where the profile gives the volume back.
   double direction = 1.0, mostChange = 0.0;
   for (double degrees : ko.sampleDegrees) {
     bent(degrees, base, moved);
@@ -595,14 +595,20 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   double reachOut = 0.0;
   for (int i = 0; i < n; ++i) reachOut = std::max(reachOut, profile.row(i).norm());
   const double smallest = kVisibleOffset * limbRadius / std::max(reachOut, 1e-300);
-  // The amplitude that keeps the band's volume at a bend (at most amax), 0 when pushing out gives none back.
+  // The signed amplitude that keeps the band's volume at a bend (|a| at most amax): along the profile where the
+  // bend's change has the dominant sample's sign, against it where it has the other (a knee that gains volume at 45
+  // degrees and loses it at 135); 0 when moving the skin either way gives none back.
   auto restoring = [&](const Points& base, const Points& moved) {
-    const double before = deficit(base), most = deficit(base + amax * moved);
-    if (!(before < 0.0 && most > before)) return 0.0;
-    if (most <= 0.0) return amax;
+    const double before = deficit(base);
+    if (before == 0.0) return 0.0;
+    const double sign = before < 0.0 ? 1.0 : -1.0;
+    auto off = [&](double t) { return sign * deficit(base + (sign * t) * moved); };  // < 0 until restored
+    const double most = off(amax);
+    if (!(most > sign * before)) return 0.0;
+    if (most <= 0.0) return sign * amax;
     double lo = 0.0, hi = amax;
-    for (int it = 0; it < 40; ++it) (deficit(base + 0.5 * (lo + hi) * moved) < 0.0 ? lo : hi) = 0.5 * (lo + hi);
-    return hi;
+    for (int it = 0; it < 40; ++it) (off(0.5 * (lo + hi)) < 0.0 ? lo : hi) = 0.5 * (lo + hi);
+    return sign * hi;
   };
   // Contacts: skin that touches other skin under the push (the back of the knee against the calf, an arm against the
   // torso under the armpit) stays still, and the free skin gives the volume back. At each sample the restoring
@@ -616,7 +622,7 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     for (int round = 0; round < kContactRounds; ++round) {
       BendCache::Bend& bend = bent(degrees, base, moved);
       const double a = restoring(base, moved);
-      if (!(a > smallest)) break;
+      if (!(std::abs(a) > smallest)) break;
       const size_t before = heldIds.size();
       for (const auto& [f, g] : contacts(bend, base, Points(base + a * moved)))
         for (int t : {f, g})
@@ -640,11 +646,11 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     BendCache::Bend& bend = bent(degrees, base, moved);
     const double before = change(base);
     double a = restoring(base, moved);
-    if (a > 0.0) {  // the profile pushed out does give volume back
+    if (a != 0.0) {  // moving the skin does give the volume back
       // No more folding than the blend alone at this flexion: the amplitude halves until it does not; an amplitude
       // under the visible offset (halved there or small from the start) is none.
-      while (a > smallest && crosses(bend, base, Points(base + a * moved))) a *= 0.5;
-      if (!(a > smallest)) a = 0.0;
+      while (std::abs(a) > smallest && crosses(bend, base, Points(base + a * moved))) a *= 0.5;
+      if (!(std::abs(a) > smallest)) a = 0.0;
     }
     const double half = std::sin(0.5 * degrees * kPi / 180.0);
     s2.push_back(half * half);
@@ -652,7 +658,8 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     key.sampleDegrees.push_back(degrees);
     key.changeWithout.push_back(before);
   }
-  // amplitude(s) = s (c1 + c2 s), least squares; a single s^2 term when the pair would go negative on [0, 1].
+  // amplitude(s) = s (c1 + c2 s), least squares. Amplitudes of one sign keep it: a single s^2 term when the pair
+  // would change sign on [0, 1]; with both signs among the samples the weight changes sign with the bend.
   double s2s = 0.0, s3 = 0.0, s4 = 0.0, as = 0.0, as2 = 0.0;
   for (size_t k = 0; k < s2.size(); ++k) {
     const double x = s2[k];
@@ -668,21 +675,22 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     c1 = (as * s4 - as2 * s3) / det;
     c2 = (s2s * as2 - s3 * as) / det;
   }
-  if (!(c1 >= 0.0 && c1 + c2 >= 0.0)) {
+  const bool bothSigns = *std::min_element(amplitude.begin(), amplitude.end()) < 0.0;
+  if (!bothSigns && !(c1 >= 0.0 && c1 + c2 >= 0.0)) {
     c1 = 0.0;
     c2 = s4 > 0.0 ? as2 / s4 : 0.0;
   }
-  double peak = c1 + c2;  // the largest amplitude over s in [0, 1]: at s = 1 or at the parabola's top
-  if (c2 < 0.0) {
+  double peak = std::abs(c1 + c2);  // the largest |amplitude| over s in [0, 1]: at s = 1 or at the parabola's top
+  if (c2 != 0.0) {
     const double top = -c1 / (2.0 * c2);
-    if (top > 0.0 && top < 1.0) peak = std::max(peak, top * (c1 + c2 * top));
+    if (top > 0.0 && top < 1.0) peak = std::max(peak, std::abs(top * (c1 + c2 * top)));
   }
   if (!(peak > 1e-6)) return false;
   key.k1 = c1 / peak;
   key.k2 = c2 / peak;
   auto weightAt = [&](double degrees) {
     const double half = std::sin(0.5 * degrees * kPi / 180.0);
-    return std::clamp(half * half * (key.k1 + key.k2 * half * half), 0.0, 1.0);
+    return std::clamp(half * half * (key.k1 + key.k2 * half * half), -1.0, 1.0);
   };
   if (!(peak > smallest)) return false;
   // Never fold the skin more than the blend alone does, at every 30 degrees of flexion and at the largest sample: the
@@ -847,11 +855,11 @@ double volumeKeyWeight(const VolumeKey& key, const Eigen::Quaterniond& localRota
   const Eigen::Quaterniond q(localRotation.coeffs() / std::sqrt(n2));
   const double s = q.x() * q.x() + q.z() * q.z();
   const double weight = s * (key.k1 + key.k2 * s);
-  if (key.swing.squaredNorm() == 0.0) return std::clamp(weight, 0.0, 1.0);
+  if (key.swing.squaredNorm() == 0.0) return std::clamp(weight, -1.0, 1.0);
   // The bone's Y axis leans by (a, c) / 2 in its rest frame's x and z (u(q) in correctives.h).
   const double a = q.x() * q.y() - q.w() * q.z(), c = q.y() * q.z() + q.w() * q.x();
   const double toward = std::max(key.swing.x() * a + key.swing.y() * c, 0.0);
-  return std::clamp(weight * toward * toward / std::max(a * a + c * c, kLeanFloor), 0.0, 1.0);
+  return std::clamp(weight * toward * toward / std::max(a * a + c * c, kLeanFloor), -1.0, 1.0);
 }
 
 void applyVolumeKeys(const std::vector<VolumeKey>& keys, const std::vector<Eigen::Quaterniond>& localRotations,
