@@ -460,6 +460,23 @@ def test_volume_keys_of_a_character_nobody_here_made_play_as_the_core_and_export
     names = [n for mesh in doc["meshes"] for n in mesh.get("extras", {}).get("targetNames", [])]
     assert set(moved) <= set(names), (sorted(moved), names)
     assert any(c["target"]["path"] == "weights" for a in doc.get("animations", []) for c in a["channels"])
+    # the negative weight is exported as it is (glTF allows it; Blender's own glTF importer clamps it to 0)
+    low_name = next(e["name"] for es in entries.values() for e in es if e["bone"] == low_bone and not any(e["swing"]))
+    exported = []
+    for a in doc.get("animations", []):
+        for c in a["channels"]:
+            if c["target"]["path"] != "weights":
+                continue
+            targets = doc["meshes"][doc["nodes"][c["target"]["node"]]["mesh"]].get("extras", {}).get("targetNames", [])
+            if low_name not in targets:
+                continue
+            accessor = doc["accessors"][a["samplers"][c["sampler"]]["output"]]
+            view = doc["bufferViews"][accessor["bufferView"]]
+            with open(os.path.join(TMP, doc["buffers"][view["buffer"]]["uri"]), "rb") as f:
+                f.seek(view.get("byteOffset", 0) + accessor.get("byteOffset", 0))
+                values = np.frombuffer(f.read(4 * accessor["count"]), dtype="<f4")
+            exported.append(float(values.reshape(-1, len(targets))[:, targets.index(low_name)].min()))
+    assert exported and min(exported) < -0.05, (low_name, exported)
     restored = 0
     for m in meshes:
         if entries[m.name]:

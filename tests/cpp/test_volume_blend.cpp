@@ -428,6 +428,29 @@ TEST(VolumeKeys, WeightsFollowTheSwingOnlyAndTheFourQuartersMakeTheAnyWayKey) {
     EXPECT_EQ(volumeKeyWeight(quarters[static_cast<size_t>(quarter)], Eigen::Quaterniond::Identity()), 0.0);
 }
 
+TEST(VolumeKeys, SignedWeightsChangeSignWithTheBendAndClampAtMinusOne) {
+  // A key whose band gains volume at small bends and loses it at deep ones: s (k1 + k2 s) with k1 < 0 < k1 + k2 is
+  // negative below s = -k1 / k2 and reaches 1 at s = 1; a directional key scales it by g >= 0; beyond [-1, 1] it
+  // clamps (Blender's shape key slider runs from -1 to 1).
+  VolumeKey turning;
+  turning.k1 = -1.2;
+  turning.k2 = 2.2;
+  VolumeKey directional = turning;
+  directional.swing = {1.0, 0.0};
+  VolumeKey steep;
+  steep.k1 = -3.0;
+  for (double degrees : {20.0, 45.0, 60.0, 90.0, 120.0, 170.0}) {
+    const double half = 0.5 * degrees * kPi / 180.0, s = std::sin(half) * std::sin(half);
+    const Eigen::Quaterniond q(Eigen::AngleAxisd(2.0 * half, -Vec3::UnitZ()));  // the tail leans towards +x
+    EXPECT_NEAR(volumeKeyWeight(turning, q), s * (-1.2 + 2.2 * s), 1e-12) << degrees;
+    EXPECT_NEAR(volumeKeyWeight(directional, q), s * (-1.2 + 2.2 * s), 1e-9) << degrees;  // g = 1 along its side
+    EXPECT_NEAR(volumeKeyWeight(steep, q), std::max(-3.0 * s, -1.0), 1e-12) << degrees;
+  }
+  const Eigen::Quaterniond at60(Eigen::AngleAxisd(60.0 * kPi / 180.0, Vec3::UnitX()));
+  EXPECT_LT(volumeKeyWeight(turning, at60), -0.15);  // s = 1/4: -0.1625
+  EXPECT_EQ(volumeKeyWeight(steep, Eigen::Quaterniond(Eigen::AngleAxisd(kPi, Vec3::UnitX()))), -1.0);
+}
+
 TEST(VolumeKeys, SoldierJointsKeepTheirVolumeWithoutFoldingAndRestIsExact) {
   // A character nobody here made (Quaternius' soldier, four meshes, x100): the keys sit on its limbs only, move
   // nothing at rest, and at 120 degrees of elbow and knee flexion (not one of the keys' sample flexions) the band

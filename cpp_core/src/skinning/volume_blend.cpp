@@ -675,8 +675,10 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     c1 = (as * s4 - as2 * s3) / det;
     c2 = (s2s * as2 - s3 * as) / det;
   }
-  const bool bothSigns = *std::min_element(amplitude.begin(), amplitude.end()) < 0.0;
-  if (!bothSigns && !(c1 >= 0.0 && c1 + c2 >= 0.0)) {
+  const double lowest = *std::min_element(amplitude.begin(), amplitude.end());
+  const double highest = *std::max_element(amplitude.begin(), amplitude.end());
+  const double sign = highest > 0.0 ? 1.0 : -1.0;  // of the amplitudes when they have one sign
+  if (!(lowest < 0.0 && highest > 0.0) && !(sign * c1 >= 0.0 && sign * (c1 + c2) >= 0.0)) {
     c1 = 0.0;
     c2 = s4 > 0.0 ? as2 / s4 : 0.0;
   }
