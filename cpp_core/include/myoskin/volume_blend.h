@@ -137,7 +137,8 @@ struct VolumeKeyOptions {
 // no more self-intersecting triangle pairs than without the key; the weight's fit is checked the same way every 30
 // degrees. Skin that touches other skin under the push (the back of the knee, under the armpit) stays still, the
 // profile faded back over half a limb radius: every contact held, or only those the push makes. The profile swells
-// the outer side, the skin all round or the crease's side; of the six fits (sides times contact modes) that lower the
+// the outer side, the skin all round or the crease's side, or swells the outer side while it draws the crease's side
+// in; of the eight fits (sides times contact modes) that lower the
 // band's largest |change| over the samples, the key is the one with the fewest self-intersecting pairs there, then the
 // least sum of |change| (swing axes fitted in parallel on TBB's threads; the choice does not depend on them). With
 // `rig` (built on `skeleton`) and its `hybridWeights` (computeHybridWeights: #V rows over the bones, then the rig's
