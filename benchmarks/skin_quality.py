@@ -169,6 +169,16 @@ def _best_time(f, repeats=5):
     return best
 
 
+def bind_skin(core, character, muscles, hybrid_options=None, share_options=None):
+    """What the default Bind gives the skin, through the core: (rig, hybrid weight joints, their values, the volume
+    blend's shares (compute_dqs_share(character, **share_options)), the volume keys fitted on that skin)."""
+    rig = core.MuscleRig(character, muscles)
+    hj, hw = core.hybrid_weights(character, rig, **(hybrid_options or {}))
+    share = np.asarray(core.compute_dqs_share(character, **(share_options or {})))
+    keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=hj, weight_values=hw)
+    return rig, hj, hw, share, keys
+
+
 def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 0.0, 1.0), anchored=False,
             share_options=None):
     """Per joint: dict(label, lbs, dqs, blender_dqs, myoskin, myoskin_pv, myoskin_vb, myoskin_vk band changes, bulge,
@@ -179,9 +189,8 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
     `anchored`: also anchored (band change), bulge_anchored (m, over LBS), crossings_anchored, and the best time per
     frame of the anchored skin (ms_anchored) and of Equation 3 (ms_eq3: rig, transforms and the skinner, built once)."""
     limb_radius = None
-    rig = core.MuscleRig(character, muscles)
+    rig, hj, hw, share, keys = bind_skin(core, character, muscles, hybrid_options, share_options)
     anchored_skin = core.AnchoredSkin(character, muscles) if anchored else None
-    hj, hw = core.hybrid_weights(character, rig, **(hybrid_options or {}))
     rest = np.asarray(character.vertices)
     tris = np.asarray(character.triangles)
     sj, sw = np.asarray(character.weight_joints), np.asarray(character.weight_values)
@@ -191,8 +200,6 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
     limb_radius = report["limb_radius"]
     bone_rest = np.asarray(character.bone_rest)
     combined_rest = core.combined_rest_matrices(character, rig)
-    share = np.asarray(core.compute_dqs_share(character, **(share_options or {})))
-    keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=hj, weight_values=hw)
     rows = []
     for label, bone, hinge, upper, direction, degrees in joints:
         if bone not in names:

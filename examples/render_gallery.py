@@ -99,15 +99,12 @@ def side_by_side(paths, out):
 
 def render_joints(core, character, muscles, out, args):
     """Per joint: the three skins as objects in turn, the same camera, then the panels joined."""
-    rig = core.MuscleRig(character, muscles)
-    hj, hw = core.hybrid_weights(character, rig)
+    rig, hj, hw, share, keys = skin_quality.bind_skin(core, character, muscles)
     rest = np.asarray(character.vertices)
     tris = np.asarray(character.triangles)
     sj, sw = np.asarray(character.weight_joints), np.asarray(character.weight_values)
     names, heads = list(character.bone_names), np.asarray(character.bone_heads)
     bone_rest, combined_rest = np.asarray(character.bone_rest), core.combined_rest_matrices(character, rig)
-    share = np.asarray(core.compute_dqs_share(character))
-    keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=hj, weight_values=hw)
     limb_radius = core.extract_muscles(character, build_surfaces=False)[1]["limb_radius"]
     rows = {r["label"]: r for r in skin_quality.measure(core, character, muscles, skin_quality.MAKEHUMAN_JOINTS)}
     scene = bpy.context.scene

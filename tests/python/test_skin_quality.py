@@ -199,16 +199,9 @@ def test_a_volume_key_takes_back_the_volume_a_knee_gains(core):
     assert meets_joint_target(r)
     # The knee's key moves the skin inward: its offsets point against the rest normals.
     muscles, _ = core.extract_muscles(character)
-    rig = core.MuscleRig(character, muscles)
-    hj, hw = core.hybrid_weights(character, rig)
-    share = np.asarray(core.compute_dqs_share(character))
-    keys = [k for k in core.compute_volume_keys(character, share, rig=rig, weight_joints=hj, weight_values=hw)
-            if k["bone"].startswith("shin")]
+    keys = [k for k in skin_quality.bind_skin(core, character, muscles)[4] if k["bone"].startswith("shin")]
     assert len(keys) == 2, [k["bone"] for k in keys]
-    rest, tris = np.asarray(character.vertices), np.asarray(character.triangles)
-    normals = np.zeros_like(rest)
-    for c in range(3):
-        np.add.at(normals, tris[:, c], np.cross(rest[tris[:, 1]] - rest[tris[:, 0]], rest[tris[:, 2]] - rest[tris[:, 0]]))
+    normals = np.asarray(core.vertex_normals(np.asarray(character.vertices), np.asarray(character.triangles)))
     for k in keys:
         along = np.einsum("ij,ij->i", np.asarray(k["offsets"]), normals[np.asarray(k["vertices"])])
         assert (along < 0).mean() > 0.9, k["bone"]

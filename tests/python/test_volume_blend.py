@@ -194,10 +194,7 @@ def test_a_key_whose_band_gains_then_loses_volume_keeps_it_at_every_sample(core)
     pushed out had left the gains (LowerLeg +7.8 / +5.9 / -2.4 %)."""
     character = core.load_character(shared(SOLDIER), require_weights=True)
     muscles, _ = core.extract_muscles(character)
-    rig = core.MuscleRig(character, muscles)
-    hj, hw = core.hybrid_weights(character, rig)
-    share = np.asarray(core.compute_dqs_share(character))
-    keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=hj, weight_values=hw)
+    keys = skin_quality.bind_skin(core, character, muscles)[4]
     mixed = [k for k in keys if max(k["change_without"]) > 0.01 and min(k["change_without"]) < -0.01]
     assert len(mixed) >= 4, [(k["bone"], k["change_without"]) for k in keys]
     names = list(character.bone_names)
