@@ -138,9 +138,11 @@ struct VolumeKeyOptions {
 // degrees. Skin that touches other skin under the push (the back of the knee, under the armpit) stays still, the
 // profile faded back over half a limb radius: every contact held, or only those the push makes. The profile swells
 // the outer side, the skin all round or the crease's side, or swells the outer side while it draws the crease's side
-// in; of the eight fits (sides times contact modes) that lower the
-// band's largest |change| over the samples, the key is the one with the fewest self-intersecting pairs there, then the
-// least sum of |change| (swing axes fitted in parallel on TBB's threads; the choice does not depend on them). With
+// in, each along the rest normals or away from the joint's head (at a crease closing against the trunk, a raised arm's
+// shoulder, both facing sides then move out together); of the sixteen fits (directions times sides times contact
+// modes) that lower the band's largest |change| over the samples, the key is the one with the least sum of |change|
+// there, then the fewest self-intersecting pairs (swing axes fitted in parallel on TBB's threads; the choice does not
+// depend on them). With
 // `rig` (built on `skeleton`) and its `hybridWeights` (computeHybridWeights: #V rows over the bones, then the rig's
 // joints) the bends are Bind's skin, the muscle joints included (combinedRestMatrices, the share,
 // keyOptions.dualQuatScale): the keys give back only the volume the muscles leave lost, or take back what they add.

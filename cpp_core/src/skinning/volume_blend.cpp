@@ -32,6 +32,7 @@ constexpr double kRounding = 1e-9;  // band changes this small are rounding (a b
 constexpr double kVisibleOffset = 0.01;  // volume keys: the smallest offset kept, in limb radii
 constexpr double kContactFade = 0.5;     // volume keys: the profile's fade around skin held at a contact, limb radii
 constexpr int kContactRounds = 8;        // volume keys: contact rounds per sample flexion
+constexpr double kLossTie = 1e-12;      // volume keys: fits whose summed |band change| differ less are tied
 constexpr double kGroundShare = 0.2;  // a limb whose skin reaches this share of the body height above its lowest: a leg
 
 // ============================================================================
@@ -492,6 +493,10 @@ void muscleBandMaps(const Skeleton& skeleton, const Band& band, const MuscleSkin
 // swells the outer side and draws the crease's side in (a flexed elbow's skin folding into its crease).
 enum class KeySide { Outer, AllRound, Crease, OuterAndCreaseIn };
 
+// Which way a volume key moves the skin: along its rest normal, or away from the joint (the direction from the joint's
+// head; at a crease both facing sides then move out the same way instead of into each other: a raised arm's shoulder).
+enum class KeyDirection { Normal, FromJoint };
+
 double sideFactor(KeySide keySide, double c) {
   switch (keySide) {
     case KeySide::Outer: return 0.5 * (1.0 - c);
@@ -510,7 +515,8 @@ double sideFactor(KeySide keySide, double c) {
 bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<double>& bandBlend,
                   const Points& normals, const Eigen::VectorXd& share, const VolumeBlendOptions& o,
                   const VolumeKeyOptions& ko, const RealJoint& joint, const Vec3& axis, bool directional,
-                  double limbRadius, KeySide keySide, bool holdAll, const MuscleSkin& muscles, BendCache& cache,
+                  double limbRadius, KeySide keySide, KeyDirection keyDirection, bool holdAll,
+                  const MuscleSkin& muscles, BendCache& cache,
                   VolumeKey& key, int& folds, bool& held) {
   const Vec3 head = skeleton.bones[joint.bone].head;
   const double reach = o.bandRadius * limbRadius;
@@ -526,8 +532,13 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     const double d = (band.rest.row(i).transpose() - head).norm() / reach;
     const double taper = std::pow(std::max(0.0, 1.0 - d * d), 2);
     const Vec3 normal = normals.row(band.ids[i]).transpose();
+    Vec3 dir = normal;
+    if (keyDirection == KeyDirection::FromJoint) {
+      const Vec3 out = band.rest.row(i).transpose() - head;
+      dir = out.norm() > 0.0 ? Vec3(out.normalized()) : Vec3::Zero();
+    }
     profile.row(i) = limbRadius * bandBlend[static_cast<size_t>(i)] * taper * sideFactor(keySide, normal.dot(side)) *
-                     normal.transpose();
+                     dir.transpose();
   }
   // The band bent by `degrees` about `axis` under the blend: its positions, and how one unit of the profile moves it
   // (each vertex's blended affine map is linear in its input).
@@ -777,6 +788,7 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
     size_t band;
     Vec3 axis;
     KeySide side;
+    KeyDirection direction;
     bool holdAll;
     bool ok = false;
     int folds = 0;
@@ -806,13 +818,14 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
     flexion.normalize();
     bands.push_back(std::move(jb));
     for (int quarter = 0; quarter < (joint.limbRoot ? 4 : 1); ++quarter)
-      for (KeySide keySide : kSides)
-        for (bool holdAll : {true, false})
-          fits.push_back(Fit{bands.size() - 1, Eigen::AngleAxisd(0.5 * kPi * quarter, boneY) * flexion, keySide,
-                             holdAll, false, 0, false, {}});
+      for (KeyDirection keyDirection : {KeyDirection::Normal, KeyDirection::FromJoint})
+        for (KeySide keySide : kSides)
+          for (bool holdAll : {true, false})
+            fits.push_back(Fit{bands.size() - 1, Eigen::AngleAxisd(0.5 * kPi * quarter, boneY) * flexion, keySide,
+                               keyDirection, holdAll, false, 0, false, {}});
   }
   // In parallel per swing axis; its sides in turn, sharing the band's bends.
-  constexpr size_t kFitsPerAxis = 2 * sizeof(kSides) / sizeof(kSides[0]);  // profile sides times contact modes
+  constexpr size_t kFitsPerAxis = 4 * sizeof(kSides) / sizeof(kSides[0]);  // directions x sides x contact modes
   const tbb::blocked_range<size_t> axes(0, fits.size() / kFitsPerAxis, 1);
   tbb::parallel_for(axes, [&](const tbb::blocked_range<size_t>& r) {
     for (size_t g = r.begin(); g != r.end(); ++g) {
@@ -823,14 +836,14 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
         const JointBand& jb = bands[fits[f].band];
         fits[f].ok = fitVolumeKey(skeleton, jb.band, jb.blend, normals, share, options, keyOptions, *jb.joint,
                                   fits[f].axis, jb.joint->limbRoot, scan.limbRadius, fits[f].side,
-                                  fits[f].holdAll, muscles, cache, fits[f].key, fits[f].folds, fits[f].held);
+                                  fits[f].direction, fits[f].holdAll, muscles, cache, fits[f].key, fits[f].folds, fits[f].held);
       }
     }
   });
   // Per swing axis, among the fits that lower the band's largest change over the samples (a key that trades a loss
-  // at one flexion for a gain past rest at another is none), the one with the fewest self-intersecting pairs over
-  // the samples, then the least band volume change (the first in fit order on a tie: the outer side's swell, every
-  // contact held).
+  // at one flexion for a gain past rest at another is none), the one with the least band volume change summed over
+  // the samples (each fit already folds no more than the blend alone there), then the fewest self-intersecting pairs
+  // (the first in fit order on a tie: along the normals, the outer side's swell, every contact held).
   std::vector<VolumeKey> keys;
   for (size_t first = 0; first < fits.size(); first += kFitsPerAxis) {
     Fit* best = nullptr;
@@ -841,7 +854,7 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
       for (double c : fits[f].key.changeWithout) before = std::max(before, std::abs(c));
       for (double c : fits[f].key.changeWith) after = std::max(after, std::abs(c)), loss += std::abs(c);
       if (!(after < before)) continue;
-      if (!best || fits[f].folds < best->folds || (fits[f].folds == best->folds && loss < bestLoss)) {
+      if (!best || loss < bestLoss - kLossTie || (loss <= bestLoss + kLossTie && fits[f].folds < best->folds)) {
         bestLoss = loss;
         best = &fits[f];
       }
