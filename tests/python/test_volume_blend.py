@@ -344,7 +344,7 @@ def test_an_a_pose_arm_bends_forward_and_a_leg_backward(core, seed):
     only on a leg, a limb whose skin reaches the ground: bipeds 24, 26 and 27, whose shoulder to upper arm is a twist
     split, used to get the knee's backward bend at the elbow (20 at the shoulder and its right elbow), and Bind's elbow
     key, fitted on that bend, added volume to biped 24's elbow flexed forward: +2.5 % at 120 degrees where the blend
-    alone keeps -0.4 % (now no key: -0.4 %)."""
+    alone keeps -0.4 % (then no key: -0.4 %; since keys may move the skin away from the joint, -0.1 %)."""
     character, _truth = core.make_synthetic_body(seed=seed)
     swings = flexion_swings(core, character, (0.0, -1.0, 0.0))
     arm = [bone for bone in ("upper_arm.L", "forearm.L", "upper_arm.R", "forearm.R") if bone in swings]
@@ -360,7 +360,8 @@ def test_an_a_pose_arm_bends_forward_and_a_leg_backward(core, seed):
         (row,) = skin_quality.measure(core, character, muscles, elbow, facing=(0.0, -1.0, 0.0))
         assert row["lbs"] < -0.2
         assert abs(row["myoskin_vk"]) <= 0.01, row["myoskin_vk"]
-        assert row["myoskin_vk"] <= row["myoskin_vb"] + 1e-3, (row["myoskin_vk"], row["myoskin_vb"])
+        # the key leaves the band no further from rest than the blend alone (the backward-fitted key added 2.9 points)
+        assert abs(row["myoskin_vk"]) <= abs(row["myoskin_vb"]) + 1e-3, (row["myoskin_vk"], row["myoskin_vb"])
 
 
 def test_a_horses_legs_alternate(core):
