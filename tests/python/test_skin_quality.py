@@ -158,8 +158,10 @@ def test_volume_keys_keep_the_joints_of_characters_nobody_here_made(core, name, 
     table = skin_quality.HORSE_JOINTS if name == "horse" else skin_quality.QUATERNIUS_JOINTS
     rows = rows_by_joint(core, character, table)
     _assert_joint_targets(rows, joints)
-    if name == "horse":  # the hock's key gives back most of what the blend loses (the outer side's swell alone: -4.9 %)
+    if name == "horse":  # the hock's key gives back most of what the blend loses (the outer side's swell alone: -4.9 %;
+        # stop 40's key +1.4 %: the key chosen by its 45 / 90 / 135-degree samples leaves more at 60, a regression)
         assert abs(rows["hind hock"]["myoskin_vk"]) <= 0.3 * abs(rows["hind hock"]["myoskin_vb"])
+        assert rows["hind hock"]["myoskin_vk"] > -0.045
 
 
 @pytest.mark.figures

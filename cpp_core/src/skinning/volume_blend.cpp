@@ -524,7 +524,8 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   if (!(std::abs(v0) > 0.0)) return false;
   const int n = static_cast<int>(band.ids.size());
   // Profile: the joint's blend b, tapered to 0 at the band's edge, times the side's factor of c = n . side (1 on the
-  // skin facing the way the limb bends, the crease), along the rest normal n, in limb radii (sideFactor).
+  // skin facing the way the limb bends, the crease), along the rest normal n or the unit direction from the joint's
+  // head (keyDirection), in limb radii (sideFactor).
   const Vec3 boneY = skeleton.bones[joint.bone].rest.block<3, 1>(0, 1).normalized();
   const Vec3 side = axis.cross(boneY).normalized();
   Points profile = Points::Zero(n, 3);
@@ -825,7 +826,7 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
                                keyDirection, holdAll, false, 0, false, {}});
   }
   // In parallel per swing axis; its sides in turn, sharing the band's bends.
-  constexpr size_t kFitsPerAxis = 4 * sizeof(kSides) / sizeof(kSides[0]);  // directions x sides x contact modes
+  constexpr size_t kFitsPerAxis = 2 * 2 * std::size(kSides);  // directions x sides x contact modes
   const tbb::blocked_range<size_t> axes(0, fits.size() / kFitsPerAxis, 1);
   tbb::parallel_for(axes, [&](const tbb::blocked_range<size_t>& r) {
     for (size_t g = r.begin(); g != r.end(); ++g) {
@@ -836,14 +837,15 @@ std::vector<VolumeKey> computeVolumeKeys(const Skeleton& skeleton, const SkinWei
         const JointBand& jb = bands[fits[f].band];
         fits[f].ok = fitVolumeKey(skeleton, jb.band, jb.blend, normals, share, options, keyOptions, *jb.joint,
                                   fits[f].axis, jb.joint->limbRoot, scan.limbRadius, fits[f].side,
-                                  fits[f].direction, fits[f].holdAll, muscles, cache, fits[f].key, fits[f].folds, fits[f].held);
+                                  fits[f].direction, fits[f].holdAll, muscles, cache, fits[f].key, fits[f].folds,
+                                  fits[f].held);
       }
     }
   });
   // Per swing axis, among the fits that lower the band's largest change over the samples (a key that trades a loss
   // at one flexion for a gain past rest at another is none), the one with the least band volume change summed over
-  // the samples (each fit already folds no more than the blend alone there), then the fewest self-intersecting pairs
-  // (the first in fit order on a tie: along the normals, the outer side's swell, every contact held).
+  // the samples (each fit's sample amplitudes fold no more than the blend alone), then the fewest self-intersecting
+  // pairs (the first in fit order on a tie: along the normals, the outer side's swell, every contact held).
   std::vector<VolumeKey> keys;
   for (size_t first = 0; first < fits.size(); first += kFitsPerAxis) {
     Fit* best = nullptr;
