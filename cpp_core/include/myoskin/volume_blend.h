@@ -95,8 +95,9 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& ske
 
 // A joint's volume key (a shape key in Blender): rest-space offsets of the skin around a real joint (along the rest
 // normals or away from the joint's head) that keep the band's volume as it bends: outward where the blend still
-// loses volume there, inward where it gains (the muscles over a knee thickening more than the joint collapses); a negative weight moves the skin the
-// other way (a band that gains volume at small bends and loses it at deep ones). Its weight
+// loses volume there, inward where it gains (the muscles over a knee thickening more than the joint collapses); a
+// negative weight moves the skin the other way (a band that gains volume at small bends and loses it at deep ones). Its
+// weight
 // follows the swing of the joint's child bone, s = x^2 + z^2 = sin^2(swing / 2) of the bone's local rotation
 // quaternion (w, x, y, z) (twist about the bone moves nothing; Blender reads it with a driver on the bone's Local
 // Space quaternion):  weight = clamp(s (k1 + k2 s) g, -1, 1), s (k1 + k2 s) in [-1, 1] for every swing by construction;

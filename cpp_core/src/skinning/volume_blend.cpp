@@ -530,14 +530,13 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   const Vec3 side = axis.cross(boneY).normalized();
   Points profile = Points::Zero(n, 3);
   for (int i = 0; i < n; ++i) {
-    const double d = (band.rest.row(i).transpose() - head).norm() / reach;
+    const Vec3 fromHead = band.rest.row(i).transpose() - head;
+    const double d = fromHead.norm() / reach;
     const double taper = std::pow(std::max(0.0, 1.0 - d * d), 2);
     const Vec3 normal = normals.row(band.ids[i]).transpose();
-    Vec3 dir = normal;
-    if (keyDirection == KeyDirection::FromJoint) {
-      const Vec3 out = band.rest.row(i).transpose() - head;
-      dir = out.norm() > 0.0 ? Vec3(out.normalized()) : Vec3::Zero();
-    }
+    const Vec3 dir = keyDirection == KeyDirection::Normal ? normal
+                     : d > 0.0                            ? Vec3(fromHead / fromHead.norm())
+                                                          : Vec3::Zero();
     profile.row(i) = limbRadius * bandBlend[static_cast<size_t>(i)] * taper * sideFactor(keySide, normal.dot(side)) *
                      dir.transpose();
   }
