@@ -20,8 +20,8 @@ JOBS="${MYOSKIN_JOBS:-$(nproc)}"
 # What the build needs (installed first), and what only the tests and the matrix need (installed in the
 # background while the host builds); the chroot gets both.
 BUILD_PACKAGES=(g++ cmake make libcgal-dev libopenmesh-dev libglm-dev libeigen3-dev pybind11-dev python3-dev
-                libtinygltf-dev nlohmann-json3-dev libtbb-dev libgtest-dev libbenchmark-dev)
-RUN_PACKAGES=(python3-numpy python3-pytest python3-venv python3-pip blender xvfb xauth debootstrap)
+                libtinygltf-dev nlohmann-json3-dev libtbb-dev libgtest-dev libbenchmark-dev python3-pip)
+RUN_PACKAGES=(python3-numpy python3-pytest python3-venv blender xvfb xauth debootstrap)
 PACKAGES=("${BUILD_PACKAGES[@]}" "${RUN_PACKAGES[@]}")
 # The sanitizer and fuzz tiers (host only: clang with its ASan/UBSan/libFuzzer runtimes; the same names on
 # Debian 12 and 13), labels sanitize and fuzz. MYOSKIN_SANITIZE: 1 (default) the quick scope (tests that repeat
@@ -74,7 +74,7 @@ setup() {
   fi
   mkdir -p "$BUILD"
   log "Blender, the test tools and the matrix are set up in the background ($BUILD/setup-background.log)"
-  ( install_packages "${RUN_PACKAGES[@]}"; matrix_setup ) >"$BUILD/setup-background.log" 2>&1 &
+  ( install_packages "${RUN_PACKAGES[@]}"; matrix_setup; setup_numpy2 ) >"$BUILD/setup-background.log" 2>&1 &
   SETUP_PID=$!
   trap 'setup_wait quiet' EXIT
 }
@@ -96,14 +96,64 @@ setup_wait() {
   log "background setup done"
 }
 
+# pybind11 2.12 or newer: older ones (Debian 12 has 2.10) read numpy 2's arrays with numpy 1's layout and crash the
+# interpreter on the first array passed in. Debian's when it is new enough, else the pinned one from PyPI, downloaded
+# once into build/wheels and unpacked into the build folder. Prints the folder of its pybind11Config.cmake.
+PYBIND11_PIN=2.13.6
+pybind11_cmake_dir() {
+  local debian=/usr/lib/cmake/pybind11 version
+  version="$(sed -n 's/^set(PACKAGE_VERSION "\([0-9.]*\)".*/\1/p' "$debian/pybind11ConfigVersion.cmake" 2>/dev/null)"
+  if [ -n "$version" ] && [ "$(printf '%s\n2.12\n' "$version" | sort -V | head -1)" = 2.12 ]; then
+    echo "$debian"; return
+  fi
+  local dest="$BUILD/pybind11-$PYBIND11_PIN" wheels="$BUILD/wheels/any"
+  if [ ! -f "$dest/.myoskin-ready" ]; then
+    if ! compgen -G "$wheels/pybind11-$PYBIND11_PIN-*.whl" >/dev/null; then
+      log "downloading pybind11 $PYBIND11_PIN into $wheels (once; Debian's ${version:-?} crashes on numpy 2)" >&2
+      mkdir -p "$wheels"
+      /usr/bin/python3 -m pip download -q --disable-pip-version-check --no-deps --only-binary=:all: -d "$wheels" \
+        "pybind11==$PYBIND11_PIN" 2> >(grep -v "is ignored" >&2) >&2 || { echo "myoskin: could not download pybind11 $PYBIND11_PIN" >&2; exit 1; }
+    fi
+    rm -rf "$dest"
+    /usr/bin/python3 -m pip install -q --disable-pip-version-check --root-user-action=ignore --no-deps --no-index \
+      --target "$dest" "$wheels/pybind11-$PYBIND11_PIN-"*.whl >&2 \
+      || { echo "myoskin: could not unpack pybind11 $PYBIND11_PIN" >&2; exit 1; }
+    touch "$dest/.myoskin-ready"
+  fi
+  echo "$dest/pybind11/share/cmake/pybind11"
+}
+
+# numpy 2 for the host's Python, in build/numpy2-cp<version> (PyPI, pinned, once): the python-<version>-numpy2 tier
+# runs the module's array tests under it (tests/CMakeLists.txt), as a pipeline with a pip-installed numpy would.
+NUMPY2_PIN=2.2.6
+setup_numpy2() {
+  local py dest wheels
+  py="$(/usr/bin/python3 -c 'import sys; print(f"{sys.version_info[0]}{sys.version_info[1]}")')"
+  dest="$BUILD/numpy2-cp$py" wheels="$BUILD/wheels/cp$py"
+  [ -f "$dest/.myoskin-ready" ] && return
+  if ! compgen -G "$wheels/numpy-$NUMPY2_PIN-*.whl" >/dev/null; then
+    log "downloading numpy $NUMPY2_PIN for Python $py into $wheels (once)"
+    mkdir -p "$wheels"
+    /usr/bin/python3 -m pip download -q --disable-pip-version-check --no-deps --only-binary=:all: -d "$wheels" \
+      "numpy==$NUMPY2_PIN" 2> >(grep -v "is ignored" >&2) || { echo "myoskin: could not download numpy $NUMPY2_PIN" >&2; exit 1; }
+  fi
+  rm -rf "$dest"
+  /usr/bin/python3 -m pip install -q --disable-pip-version-check --root-user-action=ignore --no-deps --no-index \
+    --target "$dest" "$wheels/numpy-$NUMPY2_PIN-"*.whl || { echo "myoskin: could not unpack numpy $NUMPY2_PIN" >&2; exit 1; }
+  touch "$dest/.myoskin-ready"
+}
+
 # Configure once (Release, Blender's Python), then build incrementally.
 # The other Debian release's core (its Python) is built in its chroot, in build/<suite>.
 build() {
   mkdir -p "$BUILD"
   matrix_write_cmake
   write_sanitize_cmake
-  if [ ! -f "$BUILD/CMakeCache.txt" ]; then
-    "$CMAKE" -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3
+  local pybind11; pybind11="$(pybind11_cmake_dir)"
+  # Configured once; again when the tree was configured with another pybind11.
+  if [ ! -f "$BUILD/CMakeCache.txt" ] || ! grep -qsx "pybind11_DIR:PATH=$pybind11" "$BUILD/CMakeCache.txt"; then
+    "$CMAKE" -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3 \
+      -Dpybind11_DIR:PATH="$pybind11"
   fi
   log "build ($BUILD)"
   "$CMAKE" --build "$BUILD" -j "$JOBS"
@@ -137,10 +187,13 @@ build_sanitize() {
   [ "$SANITIZE" != 0 ] || return 0
   local dir="$BUILD/sanitize" target=sanitize_quick
   [ "$SANITIZE" != full ] || target=all
-  if ! grep -qs '^CMAKE_UNITY_BUILD:BOOL=ON' "$dir/CMakeCache.txt"; then
+  local pybind11; pybind11="$(pybind11_cmake_dir)"
+  if ! grep -qs '^CMAKE_UNITY_BUILD:BOOL=ON' "$dir/CMakeCache.txt" \
+      || ! grep -qsx "pybind11_DIR:PATH=$pybind11" "$dir/CMakeCache.txt"; then
     CC=clang CXX=clang++ "$CMAKE" -S "$ROOT" -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -DMYOSKIN_SANITIZE=ON -DMYOSKIN_FUZZ=ON -DMYOSKIN_BUILD_BENCHMARKS=OFF \
-      -DCMAKE_UNITY_BUILD=ON -DCMAKE_UNITY_BUILD_BATCH_SIZE=8 -DPython3_EXECUTABLE=/usr/bin/python3
+      -DCMAKE_UNITY_BUILD=ON -DCMAKE_UNITY_BUILD_BATCH_SIZE=8 -DPython3_EXECUTABLE=/usr/bin/python3 \
+      -Dpybind11_DIR:PATH="$pybind11"
   fi
   log "sanitizer build ($dir, $target)"
   "$CMAKE" --build "$dir" -j "$JOBS" --target "$target"

@@ -43,9 +43,11 @@ PYBIND11_MODULE(_core, m) {
         d["python_version"] = MYOSKIN_PYTHON_VERSION;
         d["build_type"] = MYOSKIN_BUILD_TYPE;
         d["compiler"] = std::string("g++ ") + __VERSION__;
+        d["pybind11_version"] = std::to_string(PYBIND11_VERSION_MAJOR) + "." + std::to_string(PYBIND11_VERSION_MINOR);
         return d;
       },
-      "What this module was built for: myoskin_version, python_version (major.minor), build_type, compiler.");
+      "What this module was built for: myoskin_version, python_version (major.minor), build_type, compiler, "
+      "pybind11_version (major.minor).");
   m.def("available_memory", &myoskin::availableMemoryBytes,
         "Bytes the core's large stages may still allocate before they refuse with ValueError: the least of free "
         "memory, the cgroup's memory.max, ulimit -v and MYOSKIN_MEMORY_LIMIT (e.g. '4G') minus the resident set.");

@@ -1,4 +1,5 @@
 """The _core module: build info, arrays in and out, validation errors as ValueError."""
+import os
 import sys
 
 import numpy as np
@@ -11,6 +12,18 @@ def test_build_info_matches_this_interpreter(core):
     info = core.build_info()
     assert info["python_version"] == f"{sys.version_info.major}.{sys.version_info.minor}"
     assert info["myoskin_version"] == core.__version__
+
+
+def test_numpy_is_the_one_this_tier_runs_under(core):
+    """The numpy-2 tier (tests/CMakeLists.txt) puts numpy 2 first on the path: that it really does, and that the
+    module was built with a pybind11 that reads numpy 2's arrays (2.12 or newer; 2.10 crashed on the first array)."""
+    expected = os.environ.get("MYOSKIN_EXPECT_NUMPY_MAJOR")
+    if expected:
+        assert np.__version__.split(".")[0] == expected, (
+            f"numpy {np.__version__} from {np.__file__}, where this tier expects {expected}.x "
+            "(./myoskin.sh setup installs it into the build folder)")
+    version = tuple(int(x) for x in core.build_info()["pybind11_version"].split(".")[:2])
+    assert version >= (2, 12), f"built with pybind11 {version}: numpy 2 arrays would crash the interpreter"
 
 
 def _tetra_arrays():
