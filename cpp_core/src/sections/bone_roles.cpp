@@ -384,7 +384,9 @@ namespace {
 // bone whose children spread one way (a hand or foot) points at their mean, as far as the farthest along it. Any
 // other bone (a leaf, or a hub with children all round) keeps its direction, and when it is shorter than a tenth of
 // its parent it takes the parent's length.
-// The rest matrix follows with the given roll (the given X axis, made perpendicular).
+// The rest matrix follows with the given roll (the given X axis, made perpendicular). A given tail within round-off of
+// the joint (1e-6 of the skeleton's size) is set to it exactly: an end at the joint is then equally near both bones
+// bit for bit, as on a file whose tails are the joints, whatever an importer's float32 arithmetic left.
 void tailsFromJoints(Skeleton& sk) {
   const int n = sk.numBones();
   if (n == 0) return;
@@ -420,7 +422,11 @@ void tailsFromJoints(Skeleton& sk) {
     } else if (hasDirection && b.parent >= 0 && given.norm() < 0.1 * sk.bones[b.parent].length()) {
       tail = b.head + given.normalized() * sk.bones[b.parent].length();
     }
-    if ((tail - b.head).norm() <= same || (tail - b.tail).norm() <= same) continue;
+    if ((tail - b.head).norm() <= same || tail == b.tail) continue;
+    if ((tail - b.tail).norm() <= same) {  // the given tail is the joint but for round-off: made it exactly (its rest
+      b.tail = tail;                      // matrix kept), so the bones on either side of the joint share one point
+      continue;
+    }
     b.tail = tail;
     b.rest = boneMatrix(b.head, b.tail, b.rest.block<3, 1>(0, 0));
   }
