@@ -252,6 +252,9 @@ run_bench() {
       2>&1 | grep -v -e "^Blender quit" -e "^Read prefs" -e "^Freeing memory" -e "mounted file-systems" -e "^Info:" \
                     -e "| INFO: " -e "^Data are loaded" -e "^glTF import finished" || quality_failed+=("$label")
   done < <(matrix_blenders)
+  log "bench_roundoff (core: muscles under the round-off Blender's importer leaves, against the file's own numbers)"
+  PYTHONPATH="$BUILD/blender_scripts/addons/myoskin" /usr/bin/python3 "$ROOT/benchmarks/bench_roundoff.py" \
+    "${MYOSKIN_SHARED_DIR:-$ROOT/../shared}"
   log "bench_limits (core: time and peak memory at ~1M vertices and with 500 muscles)"
   PYTHONPATH="$BUILD/blender_scripts/addons/myoskin" /usr/bin/python3 "$ROOT/benchmarks/bench_limits.py"
   for b in "$BUILD"/bin/bench_*; do
