@@ -15,7 +15,7 @@
 #   MYOSKIN_SANITIZE (1: the sanitize and fuzz labels' quick scope, the default; full: every test; 0: neither).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
-BUILD="${MYOSKIN_BUILD_DIR:-$ROOT/build}"
+BUILD="$(realpath -m "${MYOSKIN_BUILD_DIR:-$ROOT/build}")"
 JOBS="${MYOSKIN_JOBS:-$(nproc)}"
 # What the build needs (installed first), and what only the tests and the matrix need (installed in the
 # background while the host builds); the chroot gets both.
@@ -97,12 +97,14 @@ setup_wait() {
 }
 
 # pybind11 2.12 or newer: older ones (Debian 12 has 2.10) read numpy 2's arrays with numpy 1's layout and crash the
-# interpreter on the first array passed in. Debian's when it is new enough, else the pinned one from PyPI, downloaded
-# once into build/wheels and unpacked into the build folder. Prints the folder of its pybind11Config.cmake.
+# interpreter on the first array passed in. Debian's when it is new enough (under ROOT_PREFIX: a chroot's), else the
+# pinned one from PyPI, downloaded once into build/wheels and unpacked into the build folder (a chroot sees the build
+# folder at the same path). Prints the folder of its pybind11Config.cmake; without the download, Debian's, with a
+# warning (the module then works under numpy 1 only).
 PYBIND11_PIN=2.13.6
 pybind11_cmake_dir() {
-  local debian=/usr/lib/cmake/pybind11 version
-  version="$(sed -n 's/^set(PACKAGE_VERSION "\([0-9.]*\)".*/\1/p' "$debian/pybind11ConfigVersion.cmake" 2>/dev/null)"
+  local prefix="${1:-}" debian=/usr/lib/cmake/pybind11 version
+  version="$(sed -n 's/^set(PACKAGE_VERSION "\([0-9.]*\)".*/\1/p' "$prefix$debian/pybind11ConfigVersion.cmake" 2>/dev/null)"
   if [ -n "$version" ] && [ "$(printf '%s\n2.12\n' "$version" | sort -V | head -1)" = 2.12 ]; then
     echo "$debian"; return
   fi
@@ -111,8 +113,12 @@ pybind11_cmake_dir() {
     if ! compgen -G "$wheels/pybind11-$PYBIND11_PIN-*.whl" >/dev/null; then
       log "downloading pybind11 $PYBIND11_PIN into $wheels (once; Debian's ${version:-?} crashes on numpy 2)" >&2
       mkdir -p "$wheels"
-      /usr/bin/python3 -m pip download -q --disable-pip-version-check --no-deps --only-binary=:all: -d "$wheels" \
-        "pybind11==$PYBIND11_PIN" 2> >(grep -v "is ignored" >&2) >&2 || { echo "myoskin: could not download pybind11 $PYBIND11_PIN" >&2; exit 1; }
+      if ! /usr/bin/python3 -m pip download -q --disable-pip-version-check --no-deps --only-binary=:all: \
+          -d "$wheels" "pybind11==$PYBIND11_PIN" 2> >(grep -v "is ignored" >&2) >&2; then
+        log "warning: could not download pybind11 $PYBIND11_PIN; building with Debian's ${version:-?}, whose module" \
+          "crashes under numpy 2" >&2
+        echo "$debian"; return
+      fi
     fi
     rm -rf "$dest"
     /usr/bin/python3 -m pip install -q --disable-pip-version-check --root-user-action=ignore --no-deps --no-index \
@@ -123,14 +129,17 @@ pybind11_cmake_dir() {
   echo "$dest/pybind11/share/cmake/pybind11"
 }
 
-# numpy 2 for the host's Python, in build/numpy2-cp<version> (PyPI, pinned, once): the python-<version>-numpy2 tier
-# runs the module's array tests under it (tests/CMakeLists.txt), as a pipeline with a pip-installed numpy would.
+# The value a CMake cache holds for a variable, whatever its type (empty when absent).
+cache_value() { sed -n "s/^$2:[A-Z]*=//p" "$1" 2>/dev/null | head -1; }
+
+# numpy 2 for the host's Python, in build/numpy2-cp<version> (PyPI, pinned, once): the python-numpy2 tier runs the
+# tests under it (tests/CMakeLists.txt), as a pipeline with a pip-installed numpy would.
 NUMPY2_PIN=2.2.6
 setup_numpy2() {
   local py dest wheels
-  py="$(/usr/bin/python3 -c 'import sys; print(f"{sys.version_info[0]}{sys.version_info[1]}")')"
-  dest="$BUILD/numpy2-cp$py" wheels="$BUILD/wheels/cp$py"
-  [ -f "$dest/.myoskin-ready" ] && return
+  py="$(/usr/bin/python3 -c 'import sys; print(f"{sys.version_info[0]}.{sys.version_info[1]}")')"
+  dest="$BUILD/numpy2-cp${py/./}" wheels="$BUILD/wheels/cp${py/./}"
+  [ "$(cat "$dest/.myoskin-ready" 2>/dev/null)" = "$NUMPY2_PIN" ] && return
   if ! compgen -G "$wheels/numpy-$NUMPY2_PIN-*.whl" >/dev/null; then
     log "downloading numpy $NUMPY2_PIN for Python $py into $wheels (once)"
     mkdir -p "$wheels"
@@ -140,7 +149,7 @@ setup_numpy2() {
   rm -rf "$dest"
   /usr/bin/python3 -m pip install -q --disable-pip-version-check --root-user-action=ignore --no-deps --no-index \
     --target "$dest" "$wheels/numpy-$NUMPY2_PIN-"*.whl || { echo "myoskin: could not unpack numpy $NUMPY2_PIN" >&2; exit 1; }
-  touch "$dest/.myoskin-ready"
+  echo "$NUMPY2_PIN" >"$dest/.myoskin-ready"
 }
 
 # Configure once (Release, Blender's Python), then build incrementally.
@@ -151,7 +160,7 @@ build() {
   write_sanitize_cmake
   local pybind11; pybind11="$(pybind11_cmake_dir)"
   # Configured once; again when the tree was configured with another pybind11.
-  if [ ! -f "$BUILD/CMakeCache.txt" ] || ! grep -qsx "pybind11_DIR:PATH=$pybind11" "$BUILD/CMakeCache.txt"; then
+  if [ ! -f "$BUILD/CMakeCache.txt" ] || [ "$(cache_value "$BUILD/CMakeCache.txt" pybind11_DIR)" != "$pybind11" ]; then
     "$CMAKE" -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3 \
       -Dpybind11_DIR:PATH="$pybind11"
   fi
@@ -188,8 +197,8 @@ build_sanitize() {
   local dir="$BUILD/sanitize" target=sanitize_quick
   [ "$SANITIZE" != full ] || target=all
   local pybind11; pybind11="$(pybind11_cmake_dir)"
-  if ! grep -qs '^CMAKE_UNITY_BUILD:BOOL=ON' "$dir/CMakeCache.txt" \
-      || ! grep -qsx "pybind11_DIR:PATH=$pybind11" "$dir/CMakeCache.txt"; then
+  if [ "$(cache_value "$dir/CMakeCache.txt" CMAKE_UNITY_BUILD)" != ON ] \
+      || [ "$(cache_value "$dir/CMakeCache.txt" pybind11_DIR)" != "$pybind11" ]; then
     CC=clang CXX=clang++ "$CMAKE" -S "$ROOT" -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -DMYOSKIN_SANITIZE=ON -DMYOSKIN_FUZZ=ON -DMYOSKIN_BUILD_BENCHMARKS=OFF \
       -DCMAKE_UNITY_BUILD=ON -DCMAKE_UNITY_BUILD_BATCH_SIZE=8 -DPython3_EXECUTABLE=/usr/bin/python3 \

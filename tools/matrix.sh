@@ -106,9 +106,13 @@ matrix_build() {
   local dir runner; dir="$(matrix_suite_build_dir "$other")"; runner="$(matrix_runner "$other")"
   # A unity build in batches of 8 (only the core and the module are built here): 161 CPU s from scratch against
   # 252 file by file (measured in the trixie chroot, stop 26). A tree configured before is configured again.
-  if ! grep -qs '^CMAKE_UNITY_BUILD:BOOL=ON' "$dir/CMakeCache.txt"; then
+  # The chroot's pybind11 when it reads numpy 2's arrays, else the pinned one (myoskin.sh, pybind11_cmake_dir).
+  local pybind11; pybind11="$(pybind11_cmake_dir "$(matrix_chroot_dir "$other")")"
+  if [ "$(cache_value "$dir/CMakeCache.txt" CMAKE_UNITY_BUILD)" != ON ] \
+      || [ "$(cache_value "$dir/CMakeCache.txt" pybind11_DIR)" != "$pybind11" ]; then
     $runner cmake -S "$ROOT" -B "$dir" -DCMAKE_BUILD_TYPE=Release -DPython3_EXECUTABLE=/usr/bin/python3 \
-      -DMYOSKIN_BUILD_BENCHMARKS=OFF -DMYOSKIN_BUILD_TESTS=OFF -DCMAKE_UNITY_BUILD=ON -DCMAKE_UNITY_BUILD_BATCH_SIZE=8
+      -DMYOSKIN_BUILD_BENCHMARKS=OFF -DMYOSKIN_BUILD_TESTS=OFF -DCMAKE_UNITY_BUILD=ON -DCMAKE_UNITY_BUILD_BATCH_SIZE=8 \
+      -Dpybind11_DIR:PATH="$pybind11"
   fi
   $runner cmake --build "$dir" -j "$JOBS" --target myoskin stage_addon
 }

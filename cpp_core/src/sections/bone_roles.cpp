@@ -385,8 +385,8 @@ namespace {
 // other bone (a leaf, or a hub with children all round) keeps its direction, and when it is shorter than a tenth of
 // its parent it takes the parent's length.
 // The rest matrix follows with the given roll (the given X axis, made perpendicular). A given tail within round-off of
-// the joint (1e-6 of the skeleton's size) is set to it exactly: an end at the joint is then equally near both bones
-// bit for bit, as on a file whose tails are the joints, whatever an importer's float32 arithmetic left.
+// its continuing child's head (1e-6 of the skeleton's size) is set to that head exactly: an end at the joint is then
+// equally near both bones bit for bit, as on a file whose tails are the joints, whatever an importer's float32 left.
 void tailsFromJoints(Skeleton& sk) {
   const int n = sk.numBones();
   if (n == 0) return;
@@ -423,8 +423,8 @@ void tailsFromJoints(Skeleton& sk) {
       tail = b.head + given.normalized() * sk.bones[b.parent].length();
     }
     if ((tail - b.head).norm() <= same || tail == b.tail) continue;
-    if ((tail - b.tail).norm() <= same) {  // the given tail is the joint but for round-off: made it exactly (its rest
-      b.tail = tail;                      // matrix kept), so the bones on either side of the joint share one point
+    if ((tail - b.tail).norm() <= same) {  // a given tail that is the joint but for round-off is set to it exactly
+      if (pick >= 0) b.tail = tail;       // (its rest matrix kept): the bones on either side share one point
       continue;
     }
     b.tail = tail;
