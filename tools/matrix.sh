@@ -105,8 +105,9 @@ matrix_build() {
   local other; other="$(matrix_other_suite "$(matrix_host_suite)")"
   local dir runner; dir="$(matrix_suite_build_dir "$other")"; runner="$(matrix_runner "$other")"
   # A unity build in batches of 8 (only the core and the module are built here): 161 CPU s from scratch against
-  # 252 file by file (measured in the trixie chroot, stop 26). A tree configured before is configured again.
-  # The chroot's pybind11 when it reads numpy 2's arrays, else the pinned one (myoskin.sh, pybind11_cmake_dir).
+  # 252 file by file (measured in the trixie chroot, stop 26). With the chroot's pybind11 when it reads numpy 2's
+  # arrays, else the pinned one (myoskin.sh, pybind11_cmake_dir); a tree configured without the unity setting or with
+  # another pybind11 is configured again.
   local pybind11; pybind11="$(pybind11_cmake_dir "$(matrix_chroot_dir "$other")")"
   if [ "$(cache_value "$dir/CMakeCache.txt" CMAKE_UNITY_BUILD)" != ON ] \
       || [ "$(cache_value "$dir/CMakeCache.txt" pybind11_DIR)" != "$pybind11" ]; then
