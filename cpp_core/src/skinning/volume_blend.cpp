@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <functional>
 #include <iterator>
 #include <limits>
@@ -440,6 +441,8 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& w, 
 
 namespace {
 
+constexpr size_t kTestedPerBend = 4;  // position sets a bend remembers with their self-intersecting pairs
+
 // A band's bends about one swing axis, shared by the fits of its profile sides and contact modes: per flexion the
 // vertices' affine maps (the skeleton's blend, or Bind's skin with the muscle joints) and the self-intersecting pairs
 // under them alone (found once).
@@ -448,6 +451,9 @@ struct BendCache {
     VertexTransforms maps;  // per band vertex the skin's affine map at this bend
     bool counted = false;
     std::vector<std::pair<int, int>> folds;  // self-intersecting band triangle pairs under the blend alone (sorted)
+    // The band positions last tested at this bend and their pairs, newest first: the fits of one axis test the same
+    // positions again (a sample's last contact round, then its fold check; both contact modes' first rounds).
+    std::deque<std::pair<Points, std::vector<std::pair<int, int>>>> tested;
   };
   std::map<double, Bend> bends;
   std::unique_ptr<SelfIntersectionTest> crossings;  // the band's self-intersection test, made once
@@ -575,12 +581,20 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     if (!bend.counted) bend.folds = pairsOf(base), bend.counted = true;
     return bend.folds;  // under the blend alone, found once
   };
+  // The pairs under `with` at a bend: a position set tested there before gives its pairs back (compared exactly).
+  auto pairsAt = [&](BendCache::Bend& bend, const Points& with) -> std::vector<std::pair<int, int>> {
+    for (const auto& [positions, pairs] : bend.tested)
+      if (positions == with) return pairs;
+    if (bend.tested.size() == kTestedPerBend) bend.tested.pop_back();
+    bend.tested.emplace_front(with, pairsOf(with));
+    return bend.tested.front().second;
+  };
   auto crosses = [&](BendCache::Bend& bend, const Points& base, const Points& with) {  // more folds than the blend
-    return pairsOf(with).size() > foldPairs(bend, base).size();
+    return pairsAt(bend, with).size() > foldPairs(bend, base).size();
   };
   // The contacts to hold under a push: all of them, or those the blend alone does not have.
   auto contacts = [&](BendCache::Bend& bend, const Points& base, const Points& with) {
-    std::vector<std::pair<int, int>> pairs = pairsOf(with);
+    std::vector<std::pair<int, int>> pairs = pairsAt(bend, with);
     if (holdAll) return pairs;
     const std::vector<std::pair<int, int>>& alone = foldPairs(bend, base);
     std::vector<std::pair<int, int>> made;
