@@ -96,37 +96,42 @@ setup_wait() {
   log "background setup done"
 }
 
+# A pinned wheel from PyPI unpacked into DEST (pip --target), downloaded once into WHEELS; DEST's marker names the
+# version, so a new pin unpacks again. Everything it prints goes to stderr. Returns 1 when the download fails;
+# exits when the unpack does.
+pinned_wheel() {
+  local name="$1" version="$2" wheels="$3" dest="$4"
+  [ "$(cat "$dest/.myoskin-ready" 2>/dev/null)" = "$version" ] && return 0
+  if ! compgen -G "$wheels/$name-$version-*.whl" >/dev/null; then
+    log "downloading $name $version into $wheels (once)" >&2
+    mkdir -p "$wheels"
+    /usr/bin/python3 -m pip download -q --disable-pip-version-check --no-deps --only-binary=:all: -d "$wheels" \
+      "$name==$version" 2> >(grep -v "is ignored" >&2) >&2 || return 1
+  fi
+  rm -rf "$dest"
+  /usr/bin/python3 -m pip install -q --disable-pip-version-check --root-user-action=ignore --no-deps --no-index \
+    --target "$dest" "$wheels/$name-$version-"*.whl >&2 || { echo "myoskin: could not unpack $name $version" >&2; exit 1; }
+  echo "$version" >"$dest/.myoskin-ready"
+}
+
 # pybind11 2.12 or newer: older ones (Debian 12 has 2.10) read numpy 2's arrays with numpy 1's layout and crash the
 # interpreter on the first array passed in. Debian's when it is new enough (under ROOT_PREFIX: a chroot's), else the
-# pinned one from PyPI, downloaded once into build/wheels and unpacked into the build folder (a chroot sees the build
-# folder at the same path). Prints the folder of its pybind11Config.cmake; without the download, Debian's, with a
-# warning (the module then works under numpy 1 only).
+# pinned one from PyPI, unpacked into the build folder (a chroot sees the build folder at the same path). Prints the
+# folder of its pybind11Config.cmake; without the download, Debian's, with a warning (the module then works under
+# numpy 1 only).
 PYBIND11_PIN=2.13.6
 pybind11_cmake_dir() {
-  local prefix="${1:-}" debian=/usr/lib/cmake/pybind11 version
+  local prefix="${1:-}" debian=/usr/lib/cmake/pybind11 version dest="$BUILD/pybind11-$PYBIND11_PIN"
   version="$(sed -n 's/^set(PACKAGE_VERSION "\([0-9.]*\)".*/\1/p' "$prefix$debian/pybind11ConfigVersion.cmake" 2>/dev/null)"
   if [ -n "$version" ] && [ "$(printf '%s\n2.12\n' "$version" | sort -V | head -1)" = 2.12 ]; then
-    echo "$debian"; return
+    echo "$debian"
+  elif pinned_wheel pybind11 "$PYBIND11_PIN" "$BUILD/wheels/any" "$dest"; then
+    echo "$dest/pybind11/share/cmake/pybind11"
+  else
+    log "warning: could not download pybind11 $PYBIND11_PIN; building with Debian's ${version:-?}, whose module" \
+      "crashes under numpy 2" >&2
+    echo "$debian"
   fi
-  local dest="$BUILD/pybind11-$PYBIND11_PIN" wheels="$BUILD/wheels/any"
-  if [ ! -f "$dest/.myoskin-ready" ]; then
-    if ! compgen -G "$wheels/pybind11-$PYBIND11_PIN-*.whl" >/dev/null; then
-      log "downloading pybind11 $PYBIND11_PIN into $wheels (once; Debian's ${version:-?} crashes on numpy 2)" >&2
-      mkdir -p "$wheels"
-      if ! /usr/bin/python3 -m pip download -q --disable-pip-version-check --no-deps --only-binary=:all: \
-          -d "$wheels" "pybind11==$PYBIND11_PIN" 2> >(grep -v "is ignored" >&2) >&2; then
-        log "warning: could not download pybind11 $PYBIND11_PIN; building with Debian's ${version:-?}, whose module" \
-          "crashes under numpy 2" >&2
-        echo "$debian"; return
-      fi
-    fi
-    rm -rf "$dest"
-    /usr/bin/python3 -m pip install -q --disable-pip-version-check --root-user-action=ignore --no-deps --no-index \
-      --target "$dest" "$wheels/pybind11-$PYBIND11_PIN-"*.whl >&2 \
-      || { echo "myoskin: could not unpack pybind11 $PYBIND11_PIN" >&2; exit 1; }
-    touch "$dest/.myoskin-ready"
-  fi
-  echo "$dest/pybind11/share/cmake/pybind11"
 }
 
 # The value a CMake cache holds for a variable, whatever its type (empty when absent).
@@ -136,20 +141,10 @@ cache_value() { sed -n "s/^$2:[A-Z]*=//p" "$1" 2>/dev/null | head -1; }
 # tests under it (tests/CMakeLists.txt), as a pipeline with a pip-installed numpy would.
 NUMPY2_PIN=2.2.6
 setup_numpy2() {
-  local py dest wheels
-  py="$(/usr/bin/python3 -c 'import sys; print(f"{sys.version_info[0]}.{sys.version_info[1]}")')"
-  dest="$BUILD/numpy2-cp${py/./}" wheels="$BUILD/wheels/cp${py/./}"
-  [ "$(cat "$dest/.myoskin-ready" 2>/dev/null)" = "$NUMPY2_PIN" ] && return
-  if ! compgen -G "$wheels/numpy-$NUMPY2_PIN-*.whl" >/dev/null; then
-    log "downloading numpy $NUMPY2_PIN for Python $py into $wheels (once)"
-    mkdir -p "$wheels"
-    /usr/bin/python3 -m pip download -q --disable-pip-version-check --no-deps --only-binary=:all: -d "$wheels" \
-      "numpy==$NUMPY2_PIN" 2> >(grep -v "is ignored" >&2) || { echo "myoskin: could not download numpy $NUMPY2_PIN" >&2; exit 1; }
-  fi
-  rm -rf "$dest"
-  /usr/bin/python3 -m pip install -q --disable-pip-version-check --root-user-action=ignore --no-deps --no-index \
-    --target "$dest" "$wheels/numpy-$NUMPY2_PIN-"*.whl || { echo "myoskin: could not unpack numpy $NUMPY2_PIN" >&2; exit 1; }
-  echo "$NUMPY2_PIN" >"$dest/.myoskin-ready"
+  local tag
+  tag="$(/usr/bin/python3 -c 'import sys; print(f"cp{sys.version_info[0]}{sys.version_info[1]}")')"
+  pinned_wheel numpy "$NUMPY2_PIN" "$BUILD/wheels/$tag" "$BUILD/numpy2-$tag" \
+    || { echo "myoskin: could not download numpy $NUMPY2_PIN" >&2; exit 1; }
 }
 
 # Configure once (Release, Blender's Python), then build incrementally.

@@ -96,9 +96,8 @@ Eigen::VectorXd computeDqsShare(const Skeleton& skeleton, const SkinWeights& ske
 // A joint's volume key (a shape key in Blender): rest-space offsets of the skin around a real joint (along the rest
 // normals or away from the joint's head) that keep the band's volume as it bends: outward where the blend still
 // loses volume there, inward where it gains (the muscles over a knee thickening more than the joint collapses); a
-// negative weight moves the skin the other way (a band that gains volume at small bends and loses it at deep ones). Its
-// weight
-// follows the swing of the joint's child bone, s = x^2 + z^2 = sin^2(swing / 2) of the bone's local rotation
+// negative weight moves the skin the other way (a band that gains volume at small bends and loses it at deep ones).
+// Its weight follows the swing of the joint's child bone, s = x^2 + z^2 = sin^2(swing / 2) of the bone's local rotation
 // quaternion (w, x, y, z) (twist about the bone moves nothing; Blender reads it with a driver on the bone's Local
 // Space quaternion):  weight = clamp(s (k1 + k2 s) g, -1, 1), s (k1 + k2 s) in [-1, 1] for every swing by construction;
 // g = 1, or for a directional key (a limb's root: one per quarter of swing directions) g = max(swing . lean, 0)^2 /
@@ -143,9 +142,8 @@ struct VolumeKeyOptions {
 // shoulder, both facing sides then move out together); of the sixteen fits (directions times sides times contact
 // modes) that lower the band's largest |change| over the samples, the key is the one with the least sum of |change|
 // there, then the fewest self-intersecting pairs (swing axes fitted in parallel on TBB's threads; the choice does not
-// depend on them). With
-// `rig` (built on `skeleton`) and its `hybridWeights` (computeHybridWeights: #V rows over the bones, then the rig's
-// joints) the bends are Bind's skin, the muscle joints included (combinedRestMatrices, the share,
+// depend on them). With `rig` (built on `skeleton`) and its `hybridWeights` (computeHybridWeights: #V rows over the
+// bones, then the rig's joints) the bends are Bind's skin, the muscle joints included (combinedRestMatrices, the share,
 // keyOptions.dualQuatScale): the keys give back only the volume the muscles leave lost, or take back what they add.
 // Deterministic. Throws
 // InputError on what computeDqsShare refuses, a share of the wrong size or outside [0, 1], no samples or a sample
