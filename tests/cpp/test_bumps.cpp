@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <random>
 #include <set>
+#include <tuple>
 
 #include "myoskin/bumps.h"
 #include "myoskin/errors.h"
@@ -187,6 +188,61 @@ TEST(Bumps, InvariantUnderStartIndexScaleAndRigidMotion) {
   const auto a = findBumps(p), b = findBumps(p);
   ASSERT_EQ(b.size(), a.size());
   for (size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(a[i].first == b[i].first && a[i].last == b[i].last && a[i].apex == b[i].apex);
+}
+
+// A clipped profile (a shoulder's): three quarters of an elliptical section with one belly, closed by a straight
+// chord through the body, sampled as finely as the skin. The base is fitted to the skin alone: the belly is found on
+// the skin, at its angle, standing out as far as on the whole section, wherever the chord runs.
+TEST(Bumps, AClippedProfileIsMeasuredOnItsSkinNotOnItsChord) {
+  const double a = 0.065, b = 0.045, h = 0.008, belly = 1.2, w = 0.5;
+  const int arcPoints = 240;
+  // The section from angle `from` to `to` with the belly; a chord back to the start unless `to` closes the turn.
+  auto section = [&](double from, double to, std::vector<char>& onSkin) {
+    std::vector<Vec2> pts;
+    for (int i = 0; i < arcPoints; ++i) {
+      const double t = from + (to - from) * i / arcPoints;
+      const double d = std::remainder(t - belly, 2 * kPi);
+      const double out = std::abs(d) < w ? h * std::pow(std::cos(0.5 * kPi * d / w), 2) : 0.0;
+      pts.push_back(Vec2(a * std::cos(t), b * std::sin(t)) + out * Vec2(b * std::cos(t), a * std::sin(t)).normalized());
+    }
+    onSkin.assign(pts.size(), 1);
+    if (to - from < 2 * kPi - 1e-9) {
+      const double spacing = (pts[1] - pts[0]).norm();
+      const Vec2 end = pts.back(), start = pts.front();
+      const int chord = static_cast<int>(std::round((start - end).norm() / spacing));
+      for (int k = 1; k < chord; ++k) pts.push_back(end + (start - end) * (static_cast<double>(k) / chord)), onSkin.push_back(0);
+    }
+    Points2 p(pts.size(), 2);
+    for (size_t i = 0; i < pts.size(); ++i) p.row(i) = pts[i].transpose();
+    return p;
+  };
+  auto onTheSkin = [](const Points2& p, const std::vector<char>& onSkin, std::vector<Bump> bumps) {
+    bumps.erase(std::remove_if(bumps.begin(), bumps.end(), [&](const Bump& x) {
+                  for (int i = x.first;; i = (i + 1) % static_cast<int>(p.rows())) {
+                    if (!onSkin[i]) return true;
+                    if (i == x.last) return false;
+                  }
+                }),
+                bumps.end());
+    return bumps;
+  };
+  std::vector<char> all;
+  const Points2 whole = section(-kPi, kPi, all);
+  const std::vector<Bump> reference = findBumps(whole);
+  ASSERT_EQ(reference.size(), 1u);
+  for (const auto& [from, to] : std::vector<std::pair<double, double>>{{-1.6, 3.6}, {-1.2, 3.9}, {-2.0, 3.3}}) {
+    std::vector<char> onSkin;
+    const Points2 p = section(from, to, onSkin);
+    const std::vector<Bump> bumps = onTheSkin(p, onSkin, findBumps(p, {}, nullptr, &onSkin));
+    std::printf("  arc %.1f..%.1f rad: %zu bump(s) on the skin, protrusion %.5f m (whole section %.5f m)\n", from, to,
+                bumps.size(), bumps.empty() ? 0.0 : bumps[0].protrusion, reference[0].protrusion);
+    ASSERT_EQ(bumps.size(), 1u) << from << ".." << to;
+    const double at = std::atan2(p(bumps[0].apex, 1) / b, p(bumps[0].apex, 0) / a);
+    EXPECT_LT(std::abs(std::remainder(at - belly, 2 * kPi)), 0.1) << from << ".." << to;
+    EXPECT_NEAR(bumps[0].protrusion, reference[0].protrusion, 0.1 * reference[0].protrusion) << from << ".." << to;
+  }
+  std::vector<char> wrongSize(3, 1);
+  EXPECT_THROW(findBumps(whole, {}, nullptr, &wrongSize), InputError);
 }
 
 TEST(BumpEllipse, MirroredSectionGivesMirroredBumpsAndEllipses) {

@@ -65,8 +65,11 @@ struct Bump {
 };
 
 // Bumps found by merging from every terminal triangle with the semicircle rule, kept when significant.
+// `onSkin` (#P, optional): 0 on the straight chord that closes a clipped profile; the smooth base is then fitted
+// to, and scored on, the skin alone.
 std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options = {},
-                            const SectionTriangulation* triangulation = nullptr);
+                            const SectionTriangulation* triangulation = nullptr,
+                            const std::vector<char>* onSkin = nullptr);
 
 // A section ellipse in plane coordinates: centre, angle of axis a from the x axis, semi-axes a >= b.
 struct Ellipse2 {
