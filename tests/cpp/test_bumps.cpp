@@ -191,9 +191,11 @@ TEST(Bumps, InvariantUnderStartIndexScaleAndRigidMotion) {
 }
 
 // A clipped profile (a shoulder's): three quarters of an elliptical section with one belly, closed by a straight
-// chord through the body, sampled as finely as the skin. The base is fitted to the skin alone: the belly is found on
-// the skin, at its angle, standing out as far as on the whole section, wherever the chord runs.
-TEST(Bumps, AClippedProfileIsMeasuredOnItsSkinNotOnItsChord) {
+// chord through the body, sampled as finely as the skin. With its onSkin mask (its base support then fades over a
+// margin of the tolerance) the belly is found on the skin, at its angle, standing out about as far as on the whole
+// section, wherever the chord runs; the protrusion changes continuously with a scale of 1 + k 1e-6 along y (the
+// round-off Blender's importer leaves along a body's height).
+TEST(Bumps, AClippedProfileFindsItsBellyOnTheSkinContinuously) {
   const double a = 0.065, b = 0.045, h = 0.008, belly = 1.2, w = 0.5;
   const int arcPoints = 240;
   // The section from angle `from` to `to` with the belly; a chord back to the start unless `to` closes the turn.
@@ -230,7 +232,9 @@ TEST(Bumps, AClippedProfileIsMeasuredOnItsSkinNotOnItsChord) {
   const Points2 whole = section(-kPi, kPi, all);
   const std::vector<Bump> reference = findBumps(whole);
   ASSERT_EQ(reference.size(), 1u);
-  for (const auto& [from, to] : std::vector<std::pair<double, double>>{{-1.6, 3.6}, {-1.2, 3.9}, {-2.0, 3.3}}) {
+  const std::vector<std::pair<double, double>> arcs = {{-1.6, 3.6}, {-1.2, 3.9}, {-2.0, 3.3}};
+  ASSERT_EQ(arcs.size(), 3u);
+  for (const auto& [from, to] : arcs) {
     std::vector<char> onSkin;
     const Points2 p = section(from, to, onSkin);
     const std::vector<Bump> bumps = onTheSkin(p, onSkin, findBumps(p, {}, nullptr, &onSkin));
@@ -240,6 +244,17 @@ TEST(Bumps, AClippedProfileIsMeasuredOnItsSkinNotOnItsChord) {
     const double at = std::atan2(p(bumps[0].apex, 1) / b, p(bumps[0].apex, 0) / a);
     EXPECT_LT(std::abs(std::remainder(at - belly, 2 * kPi)), 0.1) << from << ".." << to;
     EXPECT_NEAR(bumps[0].protrusion, reference[0].protrusion, 0.1 * reference[0].protrusion) << from << ".." << to;
+  }
+  std::vector<char> onSkin;
+  const Points2 p = section(-1.6, 3.6, onSkin);
+  double previous = -1.0;
+  for (int k = 0; k <= 20; ++k) {
+    Points2 q = p;
+    q.col(1) *= 1.0 + 1e-6 * k;
+    const std::vector<Bump> bumps = onTheSkin(q, onSkin, findBumps(q, {}, nullptr, &onSkin));
+    ASSERT_EQ(bumps.size(), 1u) << k;
+    if (previous >= 0.0) EXPECT_LT(std::abs(bumps[0].protrusion - previous), 1e-4 * h) << k;
+    previous = bumps[0].protrusion;
   }
   std::vector<char> wrongSize(3, 1);
   EXPECT_THROW(findBumps(whole, {}, nullptr, &wrongSize), InputError);

@@ -418,9 +418,9 @@ def test_the_round_off_blenders_importer_leaves_moves_no_muscle(core):
     """Issue 13 item 2 (the CLI and the add-on give the same muscles for the same file), without Blender: Blender's
     glTF importer hands the add-on makehuman_muscular_male's skin re-posed in float32, a 8e-6 scale along the body's
     height, and bone tails 1.2e-7 m off their joints (benchmarks/bench_roundoff.py applies each to the character
-    the core loads). Every muscle stays within 1 % of the limb radius. Before the shoulder's clipped profiles had
-    their smooth base fitted to the skin alone, the 8e-6 scale moved pectoral.R 0.059 limb radii (one section's base
-    fit, pulled by the chord that closes the profile, took another path)."""
+    the core loads). Every muscle stays within 1 % of the limb radius. Until a clipped (shoulder) profile's base
+    support faded over a margin of its tolerance, the 8e-6 scale moved pectoral.R 0.059 limb radii: whether one vertex
+    lay within the tolerance sent one section's base refits another way."""
     sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "benchmarks"))
     import bench_roundoff
 

@@ -65,8 +65,9 @@ struct Bump {
 };
 
 // Bumps found by merging from every terminal triangle with the semicircle rule, kept when significant.
-// `onSkin` (#P, optional): 0 on the straight chord that closes a clipped profile; the smooth base is then fitted
-// to, and scored on, the skin alone.
+// `onSkin` (#P, optional): 0 on the straight chord that closes a clipped profile (SectionProfile::onSkin); such a
+// profile's base support fades over a margin of its tolerance (see bump_significance.cpp). Throws InputError when
+// its size is not the polygon's.
 std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options = {},
                             const SectionTriangulation* triangulation = nullptr,
                             const std::vector<char>* onSkin = nullptr);

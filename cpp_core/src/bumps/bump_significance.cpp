@@ -1,15 +1,16 @@
 // Stage 3c: which merged regions are muscle bumps. The semicircle rule alone turns any smooth convex
 // section into a few large "bumps", so every merged region is measured against a smooth base shape:
-//  - base: a conic (any ellipse, any centre) fitted to the section points around the area centroid (on a
-//    clipped profile, a shoulder's or a trunk's cut through the arms, to its skin alone, not to the chord that
-//    closes it: a straight chord is no limb surface, and fitting it moved the base by round-off). The
+//  - base: a conic (any ellipse, any centre) fitted to the section points around the area centroid. The
 //    candidates are the robust lower envelope (asymmetric least squares: points above it weigh little),
 //    it refitted to the skin it explains, and the lower-envelope circle refitted to the skin it explains
 //    (as a circle, then as a conic). Each is scored by the share of the section it explains within a
 //    tolerance, minus the share where the skin lies inside it (muscles only raise the skin), minus a
-//    small roundness prior; the best wins. An ellipse or any smooth oval section is its own base; two
-//    opposite bellies (biceps and triceps), which make the lower envelope an oval through the valleys
-//    between them, get the circle through the skin between them, so both stay bumps;
+//    small roundness prior; the best wins. On a clipped profile (a shoulder's, or a trunk's cut through the
+//    arms, closed by a straight chord) the bases explain only a fifth to a quarter of it, so one vertex at the
+//    tolerance would decide between refits: there a vertex's share of the support fades linearly over +-10 %
+//    of the tolerance, and support and score change continuously with the skin. An ellipse or any smooth oval
+//    section is its own base; two opposite bellies (biceps and triceps), which make the lower envelope an
+//    oval through the valleys between them, get the circle through the skin between them, so both stay bumps;
 //  - residual = radius - base, lightly smoothed along the polygon (about 1 % of the perimeter);
 //  - a region's apex is its highest residual; its protrusion is the apex's prominence inside the region:
 //    apex minus the higher of the lowest residuals on either side of it within the arc. A region that
@@ -25,7 +26,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <limits>
 #include <numeric>
 #include <vector>
 
@@ -49,6 +49,7 @@ constexpr int kSupportIterations = 6;      // refits of the base to the skin it 
 constexpr double kSupportMargin = 0.02;    // another candidate must score this much higher than the lower envelope
 constexpr double kTwinTolerance = 1e-12;  // metres: residuals this close count as equally high (hill spans)
 constexpr double kRoundness = 0.5;         // score penalty per unit of (longest / shortest base radius - 1)
+constexpr double kClippedRamp = 0.1;       // clipped profiles: support fades over +-this share of the tolerance
 
 // Residual of each cleaned polygon vertex above the section's smooth base shape.
 struct Profile {
@@ -75,10 +76,9 @@ int conicFeatures(bool circle, const Vec2& p, double* f) {
 }
 
 // Base shape fits, the residual of the chosen base, smoothed. `supportTolerance` in metres; harmonics > 0
-// makes the base a radial Fourier series of that order (trunk sections) instead of a conic. `skin` (#M cleaned,
-// empty = all): vertices off the skin (a clipped profile's chord) take no part in the fits and scores.
-Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance, int harmonics,
-                       const std::vector<char>& skin) {
+// makes the base a radial Fourier series of that order (trunk sections) instead of a conic; `clipped`: the
+// support fades over +-kClippedRamp of the tolerance instead of ending at it.
+Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance, int harmonics, bool clipped) {
   const int m = s.size();
   Profile pr;
   std::vector<double> r(m), span(m);
@@ -107,14 +107,10 @@ Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance,
   }
   const double floorSpan = 1e-3 * spanSum / m + 1e-300;
   for (double& w : span) w = std::max(w, floorSpan);
-  if (!skin.empty()) {
-    spanSum = 0.0;
-    for (int i = 0; i < m; ++i) spanSum += (span[i] = skin[i] ? span[i] : 0.0);
-  }
 
   // Weighted algebraic least squares of Q(p) = 1, then the base radius on each vertex's ray from the
   // centroid: Q(t u) = a t^2 + b t = 1, t = 2 / (b + sqrt(b^2 + 4 a)). False when degenerate or when a ray
-  // misses the conic on the skin (strict), else such vertices keep their own radius.
+  // misses the conic (strict), else such vertices keep their own radius.
   auto fit = [&](bool circle, const std::vector<double>& weight, std::vector<double>& base, bool strict) {
     double f[5];
     const int nb = conicFeatures(circle, Vec2(1, 0), f);
@@ -138,7 +134,7 @@ Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance,
       const double disc = qb * qb + 4.0 * qa;
       const double den = disc >= 0.0 ? qb + std::sqrt(disc) : -1.0;
       if (!(den > 0.0) || !std::isfinite(den)) {
-        if (strict && span[i] > 0.0) return false;  // off the skin (a chord) the base is not used
+        if (strict) return false;
         base[i] = r[i];
       } else {
         base[i] = 2.0 / den;
@@ -198,23 +194,26 @@ Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance,
   };
   // Share of the angle where the skin lies within the tolerance of a base.
   const double tol = supportTolerance * s.scale;
+  const double ramp = clipped ? kClippedRamp * tol : 0.0;
+  auto within = [&](double residual) {  // a vertex's share of the support: 1 within the tolerance, else 0
+    if (!(ramp > 0.0)) return std::abs(residual) <= tol ? 1.0 : 0.0;
+    return std::clamp((tol + ramp - std::abs(residual)) / (2.0 * ramp), 0.0, 1.0);
+  };
   auto support = [&](const std::vector<double>& base) {
     double sum = 0.0;
-    for (int i = 0; i < m; ++i) sum += std::abs(r[i] - base[i]) <= tol ? span[i] : 0.0;
-    return spanSum > 0.0 ? sum / spanSum : 0.0;
+    for (int i = 0; i < m; ++i) sum += within(r[i] - base[i]) * span[i];
+    return sum / spanSum;
   };
   // A base's score: the share it explains minus the share where the skin lies inside it (muscles only
   // raise the skin above the muscle-free limb, so skin well inside a base speaks against it).
   auto score = [&](const std::vector<double>& base) {
     double sum = 0.0;
-    double lo = std::numeric_limits<double>::infinity(), hi = 0.0;
     for (int i = 0; i < m; ++i) {
-      if (!(span[i] > 0.0)) continue;
-      sum += std::abs(r[i] - base[i]) <= tol ? span[i] : r[i] < base[i] ? -span[i] : 0.0;
-      lo = std::min(lo, base[i]), hi = std::max(hi, base[i]);
+      const double w = within(r[i] - base[i]);
+      sum += (w - (r[i] < base[i] ? 1.0 - w : 0.0)) * span[i];
     }
-    if (!(spanSum > 0.0)) return -std::numeric_limits<double>::infinity();
-    return sum / spanSum - kRoundness * (hi / std::max(lo, 1e-300) - 1.0);
+    const auto [lo, hi] = std::minmax_element(base.begin(), base.end());
+    return sum / spanSum - kRoundness * (*hi / std::max(*lo, 1e-300) - 1.0);
   };
   // Refit to the vertices the base explains (within the tolerance) while that explains more.
   auto refine = [&](std::vector<double> base, bool circle) {
@@ -223,8 +222,11 @@ Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance,
       int count = 0;
       // The Fourier base keeps a small weight on the rest, so a wide gap in its support cannot swing it away.
       const double outside = harmonics > 0 ? kAboveWeight : 0.0;
-      for (int i = 0; i < m; ++i)
-        count += (weight[i] = std::abs(r[i] - base[i]) <= tol ? 1.0 : outside) == 1.0 && span[i] > 0.0;
+      for (int i = 0; i < m; ++i) {
+        const double w = within(r[i] - base[i]);
+        weight[i] = std::max(w, outside);
+        count += w >= 0.5;
+      }
       if (count < 10 || !fitModel(circle, weight, next, true) || !(support(next) >= support(base))) break;
       base.swap(next);
     }
@@ -355,9 +357,7 @@ std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options,
   if (onSkin && static_cast<int>(onSkin->size()) != polygon.rows())
     throw InputError("findBumps: onSkin has " + std::to_string(onSkin->size()) + " entries for " +
                      std::to_string(polygon.rows()) + " polygon points");
-  std::vector<char> skin;  // cleaned indices
-  if (onSkin && std::find(onSkin->begin(), onSkin->end(), 0) != onSkin->end())
-    for (int i = 0; i < s.size(); ++i) skin.push_back((*onSkin)[s.original[i]]);
+  const bool clipped = onSkin && std::find(onSkin->begin(), onSkin->end(), 0) != onSkin->end();
   SectionTriangulation own;
   if (!triangulation) {
     own = triangulateSection(polygon);
@@ -396,7 +396,7 @@ std::vector<Bump> findBumps(const Points2& polygon, const BumpOptions& options,
   const double threshold = std::max(options.minProtrusion, options.minRelativeProtrusion * meanRadius);
   if (options.baseHarmonics < 0 || options.baseHarmonics > 16)
     throw InputError("bump options: baseHarmonics must be in [0, 16], got " + std::to_string(options.baseHarmonics));
-  const Profile pr = measureProfile(s, options.supportTolerance * threshold, options.baseHarmonics, skin);
+  const Profile pr = measureProfile(s, options.supportTolerance * threshold, options.baseHarmonics, clipped);
 
   // Significant candidates, strongest first.
   std::vector<Candidate> cands;

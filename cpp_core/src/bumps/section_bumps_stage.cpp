@@ -121,7 +121,8 @@ SectionBumpsResult findSectionBumps(const Character& character, const SectionCut
       low.minProtrusion *= weak;
       low.minRelativeProtrusion *= weak;
       low.supportTolerance /= weak;  // the same tolerance in metres
-      std::vector<Bump> bumps = findBumps(prof.polygon, low, &tri, prof.onSkin.empty() ? nullptr : &prof.onSkin);
+      const std::vector<char>* onSkin = prof.onSkin.empty() ? nullptr : &prof.onSkin;  // a clipped profile's chord
+      std::vector<Bump> bumps = findBumps(prof.polygon, low, &tri, onSkin);
       for (Bump& b : bumps) b.significance *= weak;
       if (!prof.onSkin.empty())  // a clipped profile: bumps lie on the skin, not on the closing chord
         bumps.erase(std::remove_if(bumps.begin(), bumps.end(),
@@ -152,7 +153,7 @@ SectionBumpsResult findSectionBumps(const Character& character, const SectionCut
         if (prof.plane.mirrorAxis && options.trunkHarmonics > 0) weak.baseHarmonics = options.trunkHarmonics;
         weak.minProtrusion = options.forcedMinProtrusion;
         weak.minRelativeProtrusion = 0.0;
-        const std::vector<Bump> weakBumps = findBumps(prof.polygon, weak, &tri, prof.onSkin.empty() ? nullptr : &prof.onSkin);
+        const std::vector<Bump> weakBumps = findBumps(prof.polygon, weak, &tri, onSkin);
         const int np = static_cast<int>(prof.polygon.rows());
         double perim = 0;
         for (int k = 0; k < np; ++k) perim += (prof.polygon.row((k + 1) % np) - prof.polygon.row(k)).norm();
