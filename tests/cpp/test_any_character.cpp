@@ -88,9 +88,9 @@ TEST(AnyCharacter, SameMusclesInAnyUnitsAndPlacement) {
     const ExtractionResult r = extractMuscles(transformed(c, cases[k]), ExtractionOptions{});
     ASSERT_EQ(r.muscles.size(), base.muscles.size()) << "case " << k;
     EXPECT_NEAR(r.report.limbRadius, cases[k].scale * base.report.limbRadius, 1e-9 * cases[k].scale);
-    // Every section centre, section size and root-curve point agrees to 1 % of the limb radius (measured: within
-    // 7e-14 m, the transform's round-off; when a belly fit shrank in 7 % steps a few sections tipped by up to 2.4 mm,
-    // and this test allowed 10 %).
+    // Every section centre and root-curve point agrees to 1 % of the limb radius, every section size to 1 % of itself
+    // (measured: within 7e-14 m, the transform's round-off; when a belly fit shrank in 7 % steps a few sections tipped
+    // by up to 2.4 mm, and this test allowed 10 %).
     double worstCentre = 0.0, worstCurve = 0.0;
     int sections = 0, tipped = 0;  // sections, and those whose centre moved more than 1 % of the limb radius
     for (size_t m = 0; m < base.muscles.size(); ++m) {
@@ -117,7 +117,7 @@ TEST(AnyCharacter, SameMusclesInAnyUnitsAndPlacement) {
 
 // With scale.continuous the character is brought to the reference limb radius exactly, so scales that are no power of
 // ten (a character modelled in feet or inches, or 1.7 units tall) give the same muscles too. Measured with the default
-// power-of-ten units instead (bench_scale_sweep): makehuman_muscular_male 20 muscles at x1, 4 in feet, 26 at x2.54; the
+// power-of-ten units instead (bench_scale_sweep): makehuman_muscular_male 20 muscles at x1, 2 in feet, 26 at x2.54; the
 // woman soldier 26 at x1, 2 at x2.54.
 TEST(AnyCharacter, ContinuousScaleGivesTheSameMusclesAtAnyScale) {
   const char* files[] = {"characters/makehuman_muscular_male/makehuman_muscular_male.glb",

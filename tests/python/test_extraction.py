@@ -2,7 +2,6 @@
 import json
 import os
 import re
-import sys
 
 import numpy as np
 import pytest
@@ -421,8 +420,12 @@ def test_the_round_off_blenders_importer_leaves_moves_no_muscle(core):
     the core loads). Every muscle stays within 1 % of the limb radius. Until a clipped (shoulder) profile's base
     support faded over a margin of its tolerance, the 8e-6 scale moved pectoral.R 0.059 limb radii: whether one vertex
     lay within the tolerance sent one section's base refits another way."""
-    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "benchmarks"))
-    import bench_roundoff
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "bench_roundoff", os.path.join(os.path.dirname(__file__), "..", "..", "benchmarks", "bench_roundoff.py"))
+    bench_roundoff = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench_roundoff)
 
     c = core.load_character(shared(MUSCULAR), require_weights=True)
     base, report = core.extract_muscles(c)

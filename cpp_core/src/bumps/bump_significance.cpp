@@ -192,12 +192,14 @@ Profile measureProfile(const detail::SectionPolygon& s, double supportTolerance,
     }
     return base;
   };
-  // Share of the angle where the skin lies within the tolerance of a base.
+  // Share of the angle where the skin lies within the tolerance of a base (fading over the ramp).
   const double tol = supportTolerance * s.scale;
   const double ramp = clipped ? kClippedRamp * tol : 0.0;
-  auto within = [&](double residual) {  // a vertex's share of the support: 1 within the tolerance, else 0
+  // A vertex's share of the support: 1 within the tolerance, else 0; on a clipped profile 1 up to tol - ramp,
+  // 0 from tol + ramp, linear between (NaN gives 0).
+  auto within = [&](double residual) {
     if (!(ramp > 0.0)) return std::abs(residual) <= tol ? 1.0 : 0.0;
-    return std::clamp((tol + ramp - std::abs(residual)) / (2.0 * ramp), 0.0, 1.0);
+    return std::min(1.0, std::max(0.0, (tol + ramp - std::abs(residual)) / (2.0 * ramp)));
   };
   auto support = [&](const std::vector<double>& base) {
     double sum = 0.0;
