@@ -336,6 +336,30 @@ def test_makehuman_muscles_are_named_anatomically(core):
     assert len(names) == len(core.extract_muscles(character, build_surfaces=False)[0])  # unique
 
 
+@pytest.mark.parametrize("relative", ["characters/quaternius_horse/horse.glb",
+                                      "characters/quaternius_woman_soldier/woman_soldier.glb", MUSCULAR])
+def test_mirror_twins_share_one_name(core, relative):
+    """A muscle and its mirror image on the other side get one name, number included (X-mirror editing and flipped
+    poses pair bones by name): every X.L has an X.R whose mean section centre mirrors its own (these bodies mirror
+    about x = 0) within the larger of the two muscles' mean semi-axes a. Before, the horse's upper arms were biceps.L
+    and upper_arm_inner.R (its neck turns 1 degree sideways, which tilted the axes the names are read in), and on all
+    three the numbers crossed over (MakeHuman's triceps.L, 5 sections, was the mirror of triceps_2.R)."""
+    character = core.load_character(shared(relative))
+    muscles = core.extract_muscles(character, build_surfaces=False)[0]
+    by_name = {m.name: m for m in muscles}
+    sided = [n for n in by_name if n.endswith((".L", ".R"))]
+    print(sorted(sided))
+    assert len(sided) >= 6
+    for name in sided:
+        twin = name[:-2] + (".R" if name.endswith(".L") else ".L")
+        assert twin in by_name, (name, sorted(by_name))
+        a, b = by_name[name], by_name[twin]
+        centre = np.asarray(a.section_centers).mean(axis=0)
+        mirrored = np.asarray(b.section_centers).mean(axis=0) * [-1.0, 1.0, 1.0]
+        reach = max(np.mean(a.section_a), np.mean(b.section_a))
+        assert np.linalg.norm(centre - mirrored) < reach, (name, twin, centre, mirrored, reach)
+
+
 USER_FACING = ("spacing", "min_confidence", "min_sections", "max_per_region", "joint_wrap")
 
 

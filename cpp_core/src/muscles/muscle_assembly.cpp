@@ -6,6 +6,7 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <set>
 
 #include "muscles/extraction_stages.h"
 #include "muscles/muscle_names.h"
@@ -78,28 +79,62 @@ std::vector<Muscle> assembleMuscles(const std::vector<MuscleChain>& kept, const 
   }
   // Names: anatomical where the muscle's place identifies it ("biceps.L", a second one "biceps_2.L"), else its
   // region and side of the bone ("forearm_front.L"), else (no body frame) the bone and its axis ("forearm_xpos_1").
-  std::map<std::string, int> nameCount;
+  // Mirror twins are named as a pair, from their averaged place, with one number: biceps_2.L and biceps_2.R are one
+  // muscle on the two sides (what Blender's X-mirror editing and flipped poses pair by name).
   const detail::BodyFrame frame = detail::bodyFrame(sk, roles, twist);
-  for (size_t i = 0; i < kept.size(); ++i) {
-    if (!keep[i]) continue;
-    Muscle& m = muscles[i];
-    const Bone& bone = sk.bones[kept[i].bone];
-    const Vec3 mid = m.sections[m.sections.size() / 2].center;
-    // Anatomical where the place identifies it, else by region ("forearm_front.L"); a second one "biceps_2.L".
-    std::string placed = detail::anatomicalName(m, kept[i].bone, kept[i].family, sk, frame);
-    if (placed.empty()) placed = detail::regionName(m, kept[i].bone, kept[i].family, sk, frame);
-    if (!placed.empty()) {
-      const size_t dot = placed.find('.');
-      const std::string stem = placed.substr(0, dot), side = dot == std::string::npos ? "" : placed.substr(dot);
-      const int k = ++nameCount[placed];
-      m.name = k == 1 ? placed : stem + "_" + std::to_string(k) + side;
-      if (kept[i].forced) ++rep.forced;
-      out.push_back(std::move(m));
+  std::vector<int> ids;
+  std::vector<const Muscle*> keptMuscles;
+  std::vector<std::string> keptFamilies;
+  for (size_t i = 0; i < kept.size(); ++i)
+    if (keep[i]) ids.push_back(static_cast<int>(i)), keptMuscles.push_back(&muscles[i]), keptFamilies.push_back(kept[i].family);
+  const std::vector<int> twin = detail::mirrorTwins(keptMuscles, keptFamilies, frame);
+  std::set<std::string> used;
+  std::map<std::string, int> nameCount;  // names by bone and axis (no body frame)
+  auto numbered = [](const std::string& stem, int k, const std::string& side) {
+    return (k == 1 ? stem : stem + "_" + std::to_string(k)) + side;
+  };
+  auto firstFree = [&](const std::string& stem, const std::vector<std::string>& sides) {
+    for (int k = 1;; ++k)
+      if (std::none_of(sides.begin(), sides.end(), [&](const std::string& x) { return used.count(numbered(stem, k, x)); }))
+        return k;
+  };
+  auto sideOfCentre = [&](const Muscle& m) {
+    Vec3 c = Vec3::Zero();
+    for (const MuscleSection& x : m.sections) c += x.center;
+    return (c / static_cast<double>(m.sections.size()) - frame.centre).dot(frame.left) > 0 ? ".L" : ".R";
+  };
+  std::vector<std::string> names(ids.size());
+  for (size_t n = 0; n < ids.size(); ++n) {
+    if (!names[n].empty()) continue;
+    const int i = ids[n], t = twin[n];
+    const Muscle& m = muscles[i];
+    const Muscle placedFrom = t >= 0 ? detail::symmetrisedForNaming(m, muscles[ids[t]], frame) : Muscle{};
+    const Muscle& at = t >= 0 ? placedFrom : m;
+    std::string placed = detail::anatomicalName(at, kept[i].bone, kept[i].family, sk, frame);
+    if (placed.empty()) placed = detail::regionName(at, kept[i].bone, kept[i].family, sk, frame);
+    if (placed.empty()) {
+      const Bone& bone = sk.bones[kept[i].bone];
+      const std::string base = bone.name + "_" + sideName(bone, m.sections[m.sections.size() / 2].center);
+      names[n] = base + "_" + std::to_string(++nameCount[base]);
       continue;
     }
-    const std::string base = bone.name + "_" + sideName(bone, mid);
-    m.name = base + "_" + std::to_string(++nameCount[base]);
-    if (kept[i].forced) ++rep.forced;
+    const size_t dot = placed.find('.');
+    const std::string stem = placed.substr(0, dot);
+    if (t >= 0) {
+      const std::string side = sideOfCentre(m), other = side == std::string(".L") ? ".R" : ".L";
+      const int k = firstFree(stem, {side, other});
+      names[n] = numbered(stem, k, side), names[t] = numbered(stem, k, other);
+      used.insert(names[n]), used.insert(names[t]);
+    } else {
+      const std::string side = dot == std::string::npos ? "" : placed.substr(dot);
+      names[n] = numbered(stem, firstFree(stem, {side}), side);
+      used.insert(names[n]);
+    }
+  }
+  for (size_t n = 0; n < ids.size(); ++n) {
+    Muscle& m = muscles[ids[n]];
+    m.name = names[n];
+    if (kept[ids[n]].forced) ++rep.forced;
     out.push_back(std::move(m));
   }
   return out;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "muscles/muscle_util.h"
 
@@ -123,6 +124,19 @@ BodyFrame bodyFrame(const Skeleton& sk, const std::vector<BoneRole>& roles, cons
   f.forward = forward.normalized();
   f.left = f.up.cross(f.forward);
   f.sided = roots.size() >= 2;
+  // Left-right from the limbs, which mirror each other where the feet or the neck may turn (the horse's neck leans
+  // 1 degree sideways): each limb root's offset from the centre, counted towards its side, sums to the mirror normal.
+  Vec3 side = Vec3::Zero();
+  for (int r : roots) {
+    const Vec3 d = sk.bones[r].head - f.centre;
+    side += d.dot(f.left) >= 0.0 ? d : Vec3(-d);
+  }
+  side -= side.dot(f.up) * f.up;
+  if (f.sided && side.norm() > 0.0 && side.normalized().dot(f.left) > 0.9) {
+    f.left = side.normalized();
+    f.up = (f.up - f.up.dot(f.left) * f.left).normalized();
+    f.forward = f.left.cross(f.up);
+  }
   f.valid = true;
   return f;
 }
@@ -218,6 +232,49 @@ std::string regionName(const Muscle& muscle, int bone, const std::string& family
     return "";
   }
   return region + "_" + facingName(out, axis, frame, lateral) + side;
+}
+
+Vec3 mirrored(const Vec3& p, const BodyFrame& frame) {
+  return p - 2.0 * (p - frame.centre).dot(frame.left) * frame.left;
+}
+
+std::vector<int> mirrorTwins(const std::vector<const Muscle*>& muscles, const std::vector<std::string>& family,
+                             const BodyFrame& frame) {
+  const int n = static_cast<int>(muscles.size());
+  std::vector<int> twin(n, -1);
+  if (!frame.valid || !frame.sided || static_cast<int>(family.size()) != n) return twin;
+  std::vector<Vec3> centre(n, Vec3::Zero());
+  std::vector<double> reach(n, 0.0);
+  for (int i = 0; i < n; ++i) {
+    const std::vector<MuscleSection>& s = muscles[i]->sections;
+    for (const MuscleSection& x : s) centre[i] += x.center, reach[i] += x.a;
+    if (!s.empty()) centre[i] /= static_cast<double>(s.size()), reach[i] /= static_cast<double>(s.size());
+  }
+  auto lateral = [&](int i) { return (centre[i] - frame.centre).dot(frame.left); };
+  auto nearest = [&](int i) {
+    int best = -1;
+    double bestDistance = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < n; ++j) {
+      if (j == i || family[j] != family[i] || !(lateral(i) * lateral(j) < 0.0)) continue;
+      const double d = (mirrored(centre[j], frame) - centre[i]).norm();
+      if (d < std::max(reach[i], reach[j]) && d < bestDistance) bestDistance = d, best = j;
+    }
+    return best;
+  };
+  std::vector<int> near(n);
+  for (int i = 0; i < n; ++i) near[i] = nearest(i);
+  for (int i = 0; i < n; ++i)
+    if (near[i] >= 0 && near[near[i]] == i) twin[i] = near[i];
+  return twin;
+}
+
+Muscle symmetrisedForNaming(const Muscle& muscle, const Muscle& twin, const BodyFrame& frame) {
+  Muscle m;
+  m.sections = muscle.sections;
+  if (m.sections.empty() || twin.sections.empty()) return m;
+  Vec3& p = m.sections[m.sections.size() / 2].center;
+  p = 0.5 * (p + mirrored(twin.sections[twin.sections.size() / 2].center, frame));
+  return m;
 }
 
 }  // namespace myoskin::detail

@@ -36,4 +36,18 @@ std::string anatomicalName(const Muscle& muscle, int bone, const std::string& fa
 std::string regionName(const Muscle& muscle, int bone, const std::string& family, const Skeleton& skeleton,
                        const BodyFrame& frame);
 
+// p mirrored across the body's mirror plane (through frame.centre, normal frame.left).
+Vec3 mirrored(const Vec3& p, const BodyFrame& frame);
+
+// Mirror twins: twin[i] = j when muscles i and j (#M, `family` per muscle) share a family, their mean section centres
+// lie on opposite sides of the mirror plane, and each is the other's nearest mirror image within the larger of their
+// mean semi-axes a; -1 otherwise (and for every muscle without a sided body frame).
+std::vector<int> mirrorTwins(const std::vector<const Muscle*>& muscles, const std::vector<std::string>& family,
+                             const BodyFrame& frame);
+
+// `muscle` with its middle section centre (the one the names look at) averaged with the mirror image of its twin's,
+// so that a twin pair is named from one place, not from each side's own (a name decided by a threshold would
+// otherwise differ between the sides of a symmetric body by round-off).
+Muscle symmetrisedForNaming(const Muscle& muscle, const Muscle& twin, const BodyFrame& frame);
+
 }  // namespace myoskin::detail
