@@ -339,8 +339,8 @@ def test_makehuman_muscles_are_named_anatomically(core):
 @pytest.mark.parametrize("relative", ["characters/quaternius_horse/horse.glb",
                                       "characters/quaternius_woman_soldier/woman_soldier.glb", MUSCULAR])
 def test_mirror_twins_share_one_name(core, relative):
-    """A muscle and its mirror image on the other side get one name, number included (X-mirror editing and flipped
-    poses pair bones by name): every X.L has an X.R whose mean section centre mirrors its own (these bodies mirror
+    """A muscle and its mirror image on the other side get one name, number included (what pairs .L with .R by
+    name sees one muscle): every X.L has an X.R whose mean section centre mirrors its own (these bodies mirror
     about x = 0) within the larger of the two muscles' mean semi-axes a. Before, the horse's upper arms were biceps.L
     and upper_arm_inner.R (its neck turns 1 degree sideways, which tilted the axes the names are read in), and on all
     three the numbers crossed over (MakeHuman's triceps.L, 5 sections, was the mirror of triceps_2.R)."""

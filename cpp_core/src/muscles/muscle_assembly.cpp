@@ -80,7 +80,7 @@ std::vector<Muscle> assembleMuscles(const std::vector<MuscleChain>& kept, const 
   // Names: anatomical where the muscle's place identifies it ("biceps.L", a second one "biceps_2.L"), else its
   // region and side of the bone ("forearm_front.L"), else (no body frame) the bone and its axis ("forearm_xpos_1").
   // Mirror twins are named as a pair, from their averaged place, with one number: biceps_2.L and biceps_2.R are one
-  // muscle on the two sides (what Blender's X-mirror editing and flipped poses pair by name).
+  // muscle on the two sides.
   const detail::BodyFrame frame = detail::bodyFrame(sk, roles, twist);
   std::vector<int> ids;
   std::vector<const Muscle*> keptMuscles;
