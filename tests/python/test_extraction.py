@@ -358,6 +358,20 @@ def test_mirror_twins_share_one_name(core, relative):
         mirrored = np.asarray(b.section_centers).mean(axis=0) * [-1.0, 1.0, 1.0]
         reach = max(np.mean(a.section_a), np.mean(b.section_a))
         assert np.linalg.norm(centre - mirrored) < reach, (name, twin, centre, mirrored, reach)
+    # And the other way: muscles that are each other's nearest mirror image within that reach share one name.
+    centres = {m.name: np.asarray(m.section_centers).mean(axis=0) for m in muscles}
+    reach = {m.name: float(np.mean(m.section_a)) for m in muscles}
+
+    def nearest_mirror(name):
+        others = [o for o in centres if centres[o][0] * centres[name][0] < 0]
+        distance = {o: np.linalg.norm(centres[o] * [-1.0, 1.0, 1.0] - centres[name]) for o in others}
+        best = min(distance, key=distance.get, default=None)
+        return best if best is not None and distance[best] < max(reach[name], reach[best]) else None
+
+    pairs = [(n, nearest_mirror(n)) for n in centres if nearest_mirror(n) and nearest_mirror(nearest_mirror(n)) == n]
+    assert len(pairs) >= 6
+    for name, twin in pairs:
+        assert name[:-2] == twin[:-2], (name, twin)
 
 
 USER_FACING = ("spacing", "min_confidence", "min_sections", "max_per_region", "joint_wrap")

@@ -80,7 +80,7 @@ std::vector<Muscle> assembleMuscles(const std::vector<MuscleChain>& kept, const 
   // Names: anatomical where the muscle's place identifies it ("biceps.L", a second one "biceps_2.L"), else its
   // region and side of the bone ("forearm_front.L"), else (no body frame) the bone and its axis ("forearm_xpos_1").
   // Mirror twins are named as a pair, from their averaged place, with one number: biceps_2.L and biceps_2.R are one
-  // muscle on the two sides.
+  // muscle on the two sides. A muscle without a twin takes the first number free on its own side.
   const detail::BodyFrame frame = detail::bodyFrame(sk, roles, twist);
   std::vector<int> ids;
   std::vector<const Muscle*> keptMuscles;
@@ -98,7 +98,7 @@ std::vector<Muscle> assembleMuscles(const std::vector<MuscleChain>& kept, const 
       if (std::none_of(sides.begin(), sides.end(), [&](const std::string& x) { return used.count(numbered(stem, k, x)); }))
         return k;
   };
-  auto sideOfCentre = [&](const Muscle& m) {
+  auto sideOfCentre = [&](const Muscle& m) {  // a twin's sections are never empty (mirrorTwins)
     Vec3 c = Vec3::Zero();
     for (const MuscleSection& x : m.sections) c += x.center;
     return (c / static_cast<double>(m.sections.size()) - frame.centre).dot(frame.left) > 0 ? ".L" : ".R";
@@ -112,10 +112,14 @@ std::vector<Muscle> assembleMuscles(const std::vector<MuscleChain>& kept, const 
     const Muscle& at = t >= 0 ? placedFrom : m;
     std::string placed = detail::anatomicalName(at, kept[i].bone, kept[i].family, sk, frame);
     if (placed.empty()) placed = detail::regionName(at, kept[i].bone, kept[i].family, sk, frame);
-    if (placed.empty()) {
-      const Bone& bone = sk.bones[kept[i].bone];
-      const std::string base = bone.name + "_" + sideName(bone, m.sections[m.sections.size() / 2].center);
-      names[n] = base + "_" + std::to_string(++nameCount[base]);
+    if (placed.empty()) {  // no body frame: by bone and axis (a twin pair too, each on its own bone)
+      for (const int x : {static_cast<int>(n), t}) {
+        if (x < 0) continue;
+        const Bone& bone = sk.bones[kept[ids[x]].bone];
+        const Muscle& mx = muscles[ids[x]];
+        const std::string base = bone.name + "_" + sideName(bone, mx.sections[mx.sections.size() / 2].center);
+        names[x] = base + "_" + std::to_string(++nameCount[base]);
+      }
       continue;
     }
     const size_t dot = placed.find('.');

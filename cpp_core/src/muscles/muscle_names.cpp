@@ -254,8 +254,9 @@ std::vector<int> mirrorTwins(const std::vector<const Muscle*>& muscles, const st
   auto nearest = [&](int i) {
     int best = -1;
     double bestDistance = std::numeric_limits<double>::infinity();
+    if (muscles[i]->sections.empty()) return best;
     for (int j = 0; j < n; ++j) {
-      if (j == i || family[j] != family[i] || !(lateral(i) * lateral(j) < 0.0)) continue;
+      if (j == i || muscles[j]->sections.empty() || family[j] != family[i] || !(lateral(i) * lateral(j) < 0.0)) continue;
       const double d = (mirrored(centre[j], frame) - centre[i]).norm();
       if (d < std::max(reach[i], reach[j]) && d < bestDistance) bestDistance = d, best = j;
     }

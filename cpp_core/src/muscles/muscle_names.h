@@ -12,7 +12,9 @@ namespace myoskin::detail {
 // The body's axes and its limbs, from the skeleton's roles: legs are the limb chains that hang from the trunk's
 // root end (the pelvis), arms (a quadruped's front legs) those further along the trunk.
 // up: from the legs' ends to their roots; forward: the feet's direction across up (or, when the feet point
-// down as hooves do, the neck's); left = up x forward. valid is false when there are no legs or no forward.
+// down as hooves do, the neck's); left = up x forward, then, with two limbs or more, turned onto the limbs' own
+// left-right axis (each limb root's offset from the centre, counted towards its side: the mirror normal of a symmetric
+// rig, whose neck or feet may turn) and forward = left x up. valid is false when there are no legs or no forward.
 struct BodyFrame {
   bool valid = false;
   bool sided = false;          // two limbs or more: the centre is the mirror plane, so .L / .R mean something
