@@ -1,6 +1,6 @@
 // Which decisions of the extraction random round-off flips (issue 13 item 6): every skin vertex moved by uniform noise
 // of +-4e-6 of the body's size (mt19937 seeded by the draw), then
-//  1. bumps: each section's bumps (findBumps at half the threshold, as the hysteresis sees them) matched by apex (within
+//  1. bumps: each section's bumps (stages::profileBumps, as the bump stage's hysteresis sees them) matched by apex (within
 //     3 samples) to the unperturbed ones: how many keep their arc, how far their significance moves (median, 90th and
 //     99th percentile, largest), and how many jump by more than 1 % with the same arc (the section's base changed);
 //  2. chains: every linked chain (ExtractionReport::chainRecords) matched to the other run's chain sharing the most
@@ -31,7 +31,8 @@ struct SectionFound {
   bool ok = false;
 };
 
-// Every section's bumps down to half the threshold, significance relative to the full threshold.
+// Every section's bumps as the bump stage starts from them (stages::profileBumps: down to the hysteresis's share of
+// the threshold, half of it at the defaults), significance relative to the full threshold.
 std::vector<SectionFound> sectionBumps(const Character& c) {
   const ExtractionOptions o;
   ExtractionReport rep;
@@ -42,19 +43,8 @@ std::vector<SectionFound> sectionBumps(const Character& c) {
   for (size_t i = 0; i < cut.profiles.size(); ++i) {
     const SectionProfile& prof = cut.profiles[i];
     if (!prof.ok) continue;
-    std::vector<std::array<int, 2>> split;
-    if (prof.plane.mirrorAxis) {
-      const std::array<int, 2> axis = axisDiagonal(prof.polygon);
-      if (axis[0] >= 0) split.push_back(axis);
-    }
     try {
-      const SectionTriangulation tri = triangulateSection(prof.polygon, split);
-      constexpr double kHalf = 0.5;
-      BumpOptions low = o.bumps;
-      low.minProtrusion *= kHalf, low.minRelativeProtrusion *= kHalf, low.supportTolerance /= kHalf;
-      if (prof.plane.mirrorAxis) low.baseHarmonics = o.sectionBumps.trunkHarmonics;
-      out[i].bumps = findBumps(prof.polygon, low, &tri, prof.onSkin.empty() ? nullptr : &prof.onSkin);
-      for (Bump& b : out[i].bumps) b.significance *= kHalf;
+      out[i].bumps = stages::profileBumps(prof, o.bumps, o.sectionBumps).bumps;
       out[i].points = static_cast<int>(prof.polygon.rows());
       out[i].ok = true;
     } catch (const InputError&) {

@@ -70,6 +70,29 @@ void mirrorSectionBumps(SectionWork& w) {
 // Bumps per section
 // ============================================================================
 
+ProfileBumps profileBumps(const SectionProfile& prof, const BumpOptions& bumpOptions, const SectionBumpOptions& options) {
+  // Torso sections are split along their mirror axis, so a symmetric body's two sides triangulate alike.
+  std::vector<std::array<int, 2>> split;
+  if (prof.plane.mirrorAxis) {
+    const std::array<int, 2> axis = axisDiagonal(prof.polygon);
+    if (axis[0] >= 0) split.push_back(axis);
+  }
+  ProfileBumps out;
+  out.triangulation = triangulateSection(prof.polygon, split);
+  // Hysteresis: bumps down to weakFraction of the threshold (faintFraction for the conditional faint links),
+  // significance still relative to the threshold.
+  const double weak =
+      std::clamp(std::min(options.weakFraction, options.faintRelative > 0 ? options.faintFraction : 1.0), 1e-3, 1.0);
+  BumpOptions low = bumpOptions;
+  if (prof.plane.mirrorAxis && options.trunkHarmonics > 0) low.baseHarmonics = options.trunkHarmonics;
+  low.minProtrusion *= weak;
+  low.minRelativeProtrusion *= weak;
+  low.supportTolerance /= weak;  // the same tolerance in metres
+  out.bumps = findBumps(prof.polygon, low, &out.triangulation, prof.onSkin.empty() ? nullptr : &prof.onSkin);
+  for (Bump& b : out.bumps) b.significance *= weak;
+  return out;
+}
+
 SectionBumpsResult findSectionBumps(const Character& character, const SectionCut& cut, const ScaleContext& scale,
                                     const BumpOptions& bumpOptions, const SectionBumpOptions& options,
                                     const std::vector<char>& vertexMask,
@@ -104,26 +127,11 @@ SectionBumpsResult findSectionBumps(const Character& character, const SectionCut
       return;
     }
     try {
-      // Torso sections are split along their mirror axis, so a symmetric body's two sides triangulate alike.
-      std::vector<std::array<int, 2>> split;
-      if (prof.plane.mirrorAxis) {
-        const std::array<int, 2> axis = axisDiagonal(prof.polygon);
-        if (axis[0] >= 0) split.push_back(axis);
-      }
-      const SectionTriangulation tri = triangulateSection(prof.polygon, split);
+      ProfileBumps found = profileBumps(prof, bumpOptions, options);
+      const SectionTriangulation& tri = found.triangulation;
       w.split = !tri.diagonals.empty();
-      // Hysteresis: bumps down to weakFraction of the threshold (faintFraction for the conditional faint links),
-      // significance still relative to the threshold.
-      const double weak =
-          std::clamp(std::min(options.weakFraction, options.faintRelative > 0 ? options.faintFraction : 1.0), 1e-3, 1.0);
-      BumpOptions low = bumpOptions;
-      if (prof.plane.mirrorAxis && options.trunkHarmonics > 0) low.baseHarmonics = options.trunkHarmonics;
-      low.minProtrusion *= weak;
-      low.minRelativeProtrusion *= weak;
-      low.supportTolerance /= weak;  // the same tolerance in metres
+      std::vector<Bump> bumps = std::move(found.bumps);
       const std::vector<char>* onSkin = prof.onSkin.empty() ? nullptr : &prof.onSkin;  // a clipped profile's chord
-      std::vector<Bump> bumps = findBumps(prof.polygon, low, &tri, onSkin);
-      for (Bump& b : bumps) b.significance *= weak;
       if (!prof.onSkin.empty())  // a clipped profile: bumps lie on the skin, not on the closing chord
         bumps.erase(std::remove_if(bumps.begin(), bumps.end(),
                                    [&](const Bump& b) {

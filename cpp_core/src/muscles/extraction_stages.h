@@ -7,6 +7,7 @@
 #include <chrono>
 #include <vector>
 
+#include "myoskin/bumps.h"
 #include "myoskin/extraction.h"
 
 namespace myoskin::stages {
@@ -78,6 +79,15 @@ struct SectionBumpsResult {
   std::vector<SectionBumps> sections;        // the sections that gave a clean loop, in plane order
   std::vector<std::vector<int>> forcedOf;    // per section, per ellipse: forced region index or -1
 };
+
+// One profile's triangulation (split along a torso section's mirror axis, CuttingPlane::mirrorAxis) and its bumps down to
+// the hysteresis's share of the threshold (SectionBumpOptions weakFraction, or faintFraction with faint links; trunk
+// sections with trunkHarmonics), significance relative to the full threshold: the bumps findSectionBumps starts from.
+struct ProfileBumps {
+  SectionTriangulation triangulation;
+  std::vector<Bump> bumps;
+};
+ProfileBumps profileBumps(const SectionProfile& profile, const BumpOptions& bumps, const SectionBumpOptions& options);
 
 // Bumps of every profile (parallel over sections, deterministic), with the hysteresis and forced regions of
 // SectionBumpOptions. Fills rep.skipped, sections, mirrored, split, bumps.
