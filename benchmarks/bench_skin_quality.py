@@ -1,7 +1,8 @@
 """Skin quality at bent joints, LBS vs DQS vs Myoskin (and Myoskin + Preserve Volume, Myoskin + the volume blend) vs
 the anchored skin through the
 core (benchmarks/skin_quality.py defines the measures). Prints a table per character and a second one for the
-anchored skin (band, bulge, crossings, ms per frame against Equation 3 in the same run); never asserts. Joints
+anchored skin (band, bulge, crossings, ms per frame against Equation 3 in the same run), then a bend sweep per joint
+(30-150 degrees, ankles 15-60: where Bind's skin folds more than LBS, which one test angle hides); never asserts. Joints
 (skin_quality.py): elbow, knee, shoulder, hip and ankle plantar flexion (the calf's bulge on the lower leg). Characters:
 makehuman_muscular_male, a generated biped (makeSyntheticBody, known muscles), Quaternius' woman soldier (four
 meshes, x100) and Quaternius' horse (x100). Usage (./myoskin.sh bench
@@ -28,6 +29,7 @@ characters = [
     ("quaternius_horse", "characters/quaternius_horse/horse.glb", skin_quality.HORSE_JOINTS, Z_FORWARD),
 ]
 anchored_rows = []
+sweeps = []
 print(f"{'character':24s} {'joint':20s} {'LBS band':>9s} {'DQS band':>9s} {'Blender DQS':>11s} {'Myoskin':>9s} "
       f"{'Myoskin+PV':>10s} {'Myoskin+VB':>10s} {'VB+keys':>8s} {'bulge over LBS':>22s} {'+PV over LBS':>12s} {'+PV over DQS':>12s} "
       f"{'crossings LBS/DQS/Myo/Myo+PV/Myo+VB/VB+keys':>44s}")
@@ -51,6 +53,11 @@ for name, relative, joints, facing in characters:
               f"{row['crossings_lbs']:>15d}/{row['crossings_dqs']}/{row['crossings_myoskin']}/{row['crossings_myoskin_pv']}"
               f"/{row['crossings_myoskin_vb']}/{row['crossings_myoskin_vk']}")
     print(f"{name}: {len(muscles)} muscles, measured in {time.perf_counter() - start:.1f} s")
+    # An ankle plantar-flexes about 50 degrees at most: its sweep stops at 60.
+    ankles = [j for j in joints if j[0].startswith("ankle")]
+    sweeps.append((name, skin_quality.fold_sweep(core, character, muscles, [j for j in joints if j not in ankles],
+                                                 facing=facing)
+                   + skin_quality.fold_sweep(core, character, muscles, ankles, facing=facing, degrees=(15, 30, 45, 60))))
 print()
 print(f"{'character':24s} {'joint':20s} {'LBS band':>9s} {'Myoskin+PV':>10s} {'anchored':>9s} {'anchored bulge over LBS':>24s} "
       f"{'crossings LBS/+PV/anchored':>27s} {'anchored ms':>11s} {'Eq.3 ms':>8s} {'ratio':>6s}")
@@ -59,3 +66,13 @@ for name, row in anchored_rows:
           f"{100 * row['anchored']:+8.1f}% {1000 * row['bulge_anchored']:9.1f} mm ({row['bulge_anchored'] / row['limb_radius']:+.3f} r) "
           f"{row['crossings_lbs']:>14d}/{row['crossings_myoskin_pv']}/{row['crossings_anchored']} "
           f"{row['ms_anchored']:11.2f} {row['ms_eq3']:8.2f} {row['ms_anchored'] / row['ms_eq3']:6.2f}")
+print()
+print("Bend sweep (30-150 degrees by 15, ankles 15-60): crossing band triangle pairs, LBS / Myoskin (VB+keys, what Bind gives), '!' "
+      "where Myoskin folds more than LBS, and Myoskin's band change")
+for name, sweep in sweeps:
+    for joint in sweep:
+        cells = " ".join(f"{r['degrees']}:{r['crossings_lbs']}/{r['crossings_myoskin_vk']}"
+                         f"{'!' if r['crossings_myoskin_vk'] > r['crossings_lbs'] else ''} {100 * r['myoskin_vk']:+.0f}%"
+                         for r in joint["rows"])
+        worse = sum(r["crossings_myoskin_vk"] > r["crossings_lbs"] for r in joint["rows"])
+        print(f"{name[:24]:24s} {joint['label']:20s} folds more than LBS at {worse} of {len(joint['rows'])}: {cells}")

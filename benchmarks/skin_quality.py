@@ -179,6 +179,52 @@ def bind_skin(core, character, muscles, hybrid_options=None, share_options=None)
     return rig, hj, hw, share, keys
 
 
+def binds_skin_at(core, character, rest, pose, rig, hj, hw, share, keys, combined_rest):
+    """#V by 3: what Bind gives the skin at `pose` (bind_skin's rig, hybrid weights, shares and volume keys: the keyed
+    rest skinned with the muscle joints, (1 - s) linear + s dual quaternions)."""
+    state = rig.evaluate(pose)
+    full = core.skinning_transforms(character, pose, rig, state["joint_matrices"])
+    return np.asarray(core.skin(with_volume_keys(core, character, rest, keys, pose), hj, hw, full, dqs_share=share,
+                                rest_matrices=combined_rest), float)
+
+
+def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees=tuple(range(30, 151, 15))):
+    """Per joint of `joints` (measure's table; the table's angle replaced by each of `degrees`): dict(label, rows), rows
+    one dict per angle (degrees, crossings_lbs, crossings_myoskin_vk: self-intersecting band triangle pairs over rest,
+    lbs, myoskin_vk: band volume changes). Bind is done once; a joint whose band cannot be measured is left out."""
+    rig, hj, hw, share, keys = bind_skin(core, character, muscles)
+    rest = np.asarray(character.vertices)
+    tris = np.asarray(character.triangles)
+    sj, sw = np.asarray(character.weight_joints), np.asarray(character.weight_values)
+    names = list(character.bone_names)
+    heads = np.asarray(character.bone_heads)
+    _, report = core.extract_muscles(character, build_surfaces=False)
+    radius = 1.5 * report["limb_radius"]
+    combined_rest = core.combined_rest_matrices(character, rig)
+    out = []
+    for label, bone, hinge, _upper, direction, _degrees in joints:
+        if bone not in names:
+            continue
+        b = names.index(bone)
+        mask = band_triangles(rest, tris, heads[b], radius)
+        at_rest = core.self_intersections(rest, tris, mask)
+        rows = []
+        try:
+            for deg in degrees:
+                pose = bent_pose(character, bone, hinge, direction, deg, facing)
+                lbs = np.asarray(core.skin(rest, sj, sw, core.skeleton_transforms(character, pose)), float)
+                vk = binds_skin_at(core, character, rest, pose, rig, hj, hw, share, keys, combined_rest)
+                rows.append(dict(degrees=deg,
+                                 crossings_lbs=core.self_intersections(lbs, tris, mask) - at_rest,
+                                 crossings_myoskin_vk=core.self_intersections(vk, tris, mask) - at_rest,
+                                 lbs=band_volume_change(rest, lbs, tris, heads[b], pose[b][:3, 3], radius),
+                                 myoskin_vk=band_volume_change(rest, vk, tris, heads[b], pose[b][:3, 3], radius)))
+        except ValueError:  # no skin within the band (a hip deep inside the pelvis)
+            continue
+        out.append(dict(label=label, rows=rows))
+    return out
+
+
 def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 0.0, 1.0), anchored=False,
             share_options=None):
     """Per joint: dict(label, lbs, dqs, blender_dqs, myoskin, myoskin_pv, myoskin_vb, myoskin_vk band changes, bulge,
@@ -214,8 +260,7 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
         blender_dq = np.asarray(core.skin(rest, sj, sw, skel, preserve_volume=True, rest_matrices=bone_rest), float)
         myo_pv = np.asarray(core.skin(rest, hj, hw, full, preserve_volume=True, rest_matrices=combined_rest), float)
         myo_vb = np.asarray(core.skin(rest, hj, hw, full, dqs_share=share, rest_matrices=combined_rest), float)
-        myo_vk = np.asarray(core.skin(with_volume_keys(core, character, rest, keys, pose), hj, hw, full,
-                                      dqs_share=share, rest_matrices=combined_rest), float)
+        myo_vk = binds_skin_at(core, character, rest, pose, rig, hj, hw, share, keys, combined_rest)
         methods = [("lbs", lbs), ("dqs", dq), ("blender_dqs", blender_dq), ("myoskin", myo), ("myoskin_pv", myo_pv),
                    ("myoskin_vb", myo_vb), ("myoskin_vk", myo_vk)]
         timing = {}
