@@ -141,7 +141,7 @@ def meets_joint_target(r):
 def test_bend_sweep_agrees_with_the_measure_and_makehumans_knee_and_shoulder_never_fold_more_than_lbs(core, makehuman):
     """The benchmark's bend sweep (skin_quality.fold_sweep: Bind done once, each joint bent 30-150 degrees) gives at a
     table's angle what measure gives, and on MakeHuman the knee and the shoulder fold no more than LBS at any angle of
-    the sweep. Measured: knee 0-7 pairs (LBS 0-26), shoulder 0 (LBS 0-8); the elbow folds 23 pairs at 75 degrees where
+    the sweep. Measured: knee 0-17 pairs (LBS 0-26), shoulder 0 (LBS 0-8); the elbow folds 23 pairs at 75 degrees where
     LBS folds 20 (not asserted)."""
     character = core.load_character(shared(MUSCULAR), require_weights=True)
     muscles, _ = core.extract_muscles(character)
