@@ -2,7 +2,7 @@
 the anchored skin through the
 core (benchmarks/skin_quality.py defines the measures). Prints a table per character and a second one for the
 anchored skin (band, bulge, crossings, ms per frame against Equation 3 in the same run), then a bend sweep per joint
-(30-150 degrees, ankles 15-60: where Bind's skin folds more than LBS, which one test angle hides); never asserts. Joints
+(30-150 degrees, human ankles 15-60: where Bind's skin folds more than LBS, which one test angle hides); never asserts. Joints
 (skin_quality.py): elbow, knee, shoulder, hip and ankle plantar flexion (the calf's bulge on the lower leg). Characters:
 makehuman_muscular_male, a generated biped (makeSyntheticBody, known muscles), Quaternius' woman soldier (four
 meshes, x100) and Quaternius' horse (x100). Usage (./myoskin.sh bench
@@ -53,11 +53,10 @@ for name, relative, joints, facing in characters:
               f"{row['crossings_lbs']:>15d}/{row['crossings_dqs']}/{row['crossings_myoskin']}/{row['crossings_myoskin_pv']}"
               f"/{row['crossings_myoskin_vb']}/{row['crossings_myoskin_vk']}")
     print(f"{name}: {len(muscles)} muscles, measured in {time.perf_counter() - start:.1f} s")
-    # An ankle plantar-flexes about 50 degrees at most: its sweep stops at 60.
-    ankles = [j for j in joints if j[0].startswith("ankle")]
-    sweeps.append((name, skin_quality.fold_sweep(core, character, muscles, [j for j in joints if j not in ankles],
-                                                 facing=facing)
-                   + skin_quality.fold_sweep(core, character, muscles, ankles, facing=facing, degrees=(15, 30, 45, 60))))
+    # A human ankle plantar-flexes about 50 degrees at most: its sweep stops at 60 (a horse's hock sweeps to 150).
+    ankles = {j[0]: (15, 30, 45, 60) for j in joints if j[0].startswith("ankle")}
+    sweeps.append((name, skin_quality.fold_sweep(core, character, muscles, joints, facing=facing,
+                                                 degrees_by_label=ankles)))
 print()
 print(f"{'character':24s} {'joint':20s} {'LBS band':>9s} {'Myoskin+PV':>10s} {'anchored':>9s} {'anchored bulge over LBS':>24s} "
       f"{'crossings LBS/+PV/anchored':>27s} {'anchored ms':>11s} {'Eq.3 ms':>8s} {'ratio':>6s}")

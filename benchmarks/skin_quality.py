@@ -188,10 +188,12 @@ def binds_skin_at(core, character, rest, pose, rig, hj, hw, share, keys, combine
                                 rest_matrices=combined_rest), float)
 
 
-def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees=tuple(range(30, 151, 15))):
-    """Per joint of `joints` (measure's table; the table's angle replaced by each of `degrees`): dict(label, rows), rows
-    one dict per angle (degrees, crossings_lbs, crossings_myoskin_vk: self-intersecting band triangle pairs over rest,
-    lbs, myoskin_vk: band volume changes). Bind is done once; a joint whose band cannot be measured is left out."""
+def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees=tuple(range(30, 151, 15)),
+               degrees_by_label=None):
+    """Per joint of `joints` (measure's table; the table's angle replaced by each of `degrees`, or of
+    degrees_by_label[label] where given): dict(label, rows), rows one dict per angle (degrees, crossings_lbs,
+    crossings_myoskin_vk: self-intersecting band triangle pairs over rest, lbs, myoskin_vk: band volume changes). Bind is
+    done once for all joints; a joint whose bone is missing, or with no skin in its band (printed), is left out."""
     rig, hj, hw, share, keys = bind_skin(core, character, muscles)
     rest = np.asarray(character.vertices)
     tris = np.asarray(character.triangles)
@@ -207,20 +209,20 @@ def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees
             continue
         b = names.index(bone)
         mask = band_triangles(rest, tris, heads[b], radius)
+        if not mask.any():  # a joint deep inside the body (a hip inside a wide pelvis)
+            print(f"{label}: no skin within 1.5 limb radii of the joint, not swept")
+            continue
         at_rest = core.self_intersections(rest, tris, mask)
         rows = []
-        try:
-            for deg in degrees:
-                pose = bent_pose(character, bone, hinge, direction, deg, facing)
-                lbs = np.asarray(core.skin(rest, sj, sw, core.skeleton_transforms(character, pose)), float)
-                vk = binds_skin_at(core, character, rest, pose, rig, hj, hw, share, keys, combined_rest)
-                rows.append(dict(degrees=deg,
-                                 crossings_lbs=core.self_intersections(lbs, tris, mask) - at_rest,
-                                 crossings_myoskin_vk=core.self_intersections(vk, tris, mask) - at_rest,
-                                 lbs=band_volume_change(rest, lbs, tris, heads[b], pose[b][:3, 3], radius),
-                                 myoskin_vk=band_volume_change(rest, vk, tris, heads[b], pose[b][:3, 3], radius)))
-        except ValueError:  # no skin within the band (a hip deep inside the pelvis)
-            continue
+        for deg in (degrees_by_label or {}).get(label, degrees):
+            pose = bent_pose(character, bone, hinge, direction, deg, facing)
+            lbs = np.asarray(core.skin(rest, sj, sw, core.skeleton_transforms(character, pose)), float)
+            vk = binds_skin_at(core, character, rest, pose, rig, hj, hw, share, keys, combined_rest)
+            rows.append(dict(degrees=deg,
+                             crossings_lbs=core.self_intersections(lbs, tris, mask) - at_rest,
+                             crossings_myoskin_vk=core.self_intersections(vk, tris, mask) - at_rest,
+                             lbs=band_volume_change(rest, lbs, tris, heads[b], pose[b][:3, 3], radius),
+                             myoskin_vk=band_volume_change(rest, vk, tris, heads[b], pose[b][:3, 3], radius)))
         out.append(dict(label=label, rows=rows))
     return out
 

@@ -139,27 +139,25 @@ def meets_joint_target(r):
 
 
 def test_bend_sweep_agrees_with_the_measure_and_makehumans_knee_and_shoulder_never_fold_more_than_lbs(core, makehuman):
-    """The benchmark's bend sweep (skin_quality.fold_sweep: Bind done once, each joint bent 30-150 degrees) gives at a
-    table's angle what measure gives, and on MakeHuman the knee and the shoulder fold no more than LBS at any angle of
-    the sweep. Measured: knee 0-17 pairs (LBS 0-26), shoulder 0 (LBS 0-8); the elbow folds 23 pairs at 75 degrees where
-    LBS folds 20 (not asserted)."""
+    """The benchmark's bend sweep (skin_quality.fold_sweep: Bind done once, each joint bent 30-150 degrees by 15) gives
+    at the table's angle (120) what measure gives, and on MakeHuman the knee and the shoulder fold no more than LBS at
+    any angle of the sweep. Measured: knee 0-17 pairs (LBS 0-26), shoulder 0 (LBS 0-8); the elbow folds 23 pairs at 75
+    degrees where LBS folds 20 (not asserted)."""
     character = core.load_character(shared(MUSCULAR), require_weights=True)
     muscles, _ = core.extract_muscles(character)
     table = [j for j in skin_quality.MAKEHUMAN_JOINTS if j[0] in ("elbow flexion", "knee flexion", "shoulder abduction")]
-    at_120 = skin_quality.fold_sweep(core, character, muscles, table, degrees=(120,))
-    assert [j["label"] for j in at_120] == [j[0] for j in table]
-    for joint in at_120:
-        row, r = joint["rows"][0], makehuman[joint["label"]]
+    sweep = {j["label"]: j["rows"] for j in skin_quality.fold_sweep(core, character, muscles, table)}
+    assert list(sweep) == ["elbow flexion", "knee flexion", "shoulder abduction"]
+    for label, rows in sweep.items():
+        assert [r["degrees"] for r in rows] == list(range(30, 151, 15))
+        row, r = rows[6], makehuman[label]  # 120 degrees, the table's angle for all three
         assert (row["crossings_lbs"], row["crossings_myoskin_vk"]) == (r["crossings_lbs"], r["crossings_myoskin_vk"])
         assert row["lbs"] == pytest.approx(r["lbs"], abs=1e-9)
         assert row["myoskin_vk"] == pytest.approx(r["myoskin_vk"], abs=1e-9)
-    sweep = {j["label"]: j["rows"] for j in skin_quality.fold_sweep(core, character, muscles, table[1:])}
-    assert set(sweep) == {"knee flexion", "shoulder abduction"}
-    for label, rows in sweep.items():
-        assert len(rows) == 9
-        assert max(r["crossings_lbs"] for r in rows) > 0  # LBS itself folds somewhere in the sweep (it can fail)
-        for r in rows:
-            assert r["crossings_myoskin_vk"] <= r["crossings_lbs"], (label, r)
+        if label != "elbow flexion":
+            assert max(q["crossings_lbs"] for q in rows) > 0  # LBS itself folds somewhere in the sweep (it can fail)
+            for q in rows:
+                assert q["crossings_myoskin_vk"] <= q["crossings_lbs"], (label, q)
 
 
 def test_volume_keys_keep_makehumans_joints(makehuman):
