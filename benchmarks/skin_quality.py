@@ -188,6 +188,15 @@ def binds_skin_at(core, character, rest, pose, rig, hj, hw, share, keys, combine
                                 rest_matrices=combined_rest), float)
 
 
+def skin_arrays(core, character):
+    """What measure and fold_sweep read of a character: rest #V by 3, triangles, skeleton weight joints and values,
+    bone names, bone heads, and the body's limb radius (extract_muscles' report)."""
+    _, report = core.extract_muscles(character, build_surfaces=False)
+    return (np.asarray(character.vertices), np.asarray(character.triangles), np.asarray(character.weight_joints),
+            np.asarray(character.weight_values), list(character.bone_names), np.asarray(character.bone_heads),
+            report["limb_radius"])
+
+
 def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees=tuple(range(30, 151, 15)),
                degrees_by_label=None):
     """Per joint of `joints` (measure's table; the table's angle replaced by each of `degrees`, or of
@@ -195,13 +204,8 @@ def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees
     crossings_myoskin_vk: self-intersecting band triangle pairs over rest, lbs, myoskin_vk: band volume changes). Bind is
     done once for all joints; a joint whose bone is missing, or with no skin in its band (printed), is left out."""
     rig, hj, hw, share, keys = bind_skin(core, character, muscles)
-    rest = np.asarray(character.vertices)
-    tris = np.asarray(character.triangles)
-    sj, sw = np.asarray(character.weight_joints), np.asarray(character.weight_values)
-    names = list(character.bone_names)
-    heads = np.asarray(character.bone_heads)
-    _, report = core.extract_muscles(character, build_surfaces=False)
-    radius = 1.5 * report["limb_radius"]
+    rest, tris, sj, sw, names, heads, limb_radius = skin_arrays(core, character)
+    radius = 1.5 * limb_radius
     combined_rest = core.combined_rest_matrices(character, rig)
     out = []
     for label, bone, hinge, _upper, direction, _degrees in joints:
@@ -236,16 +240,9 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
     (Blender's DQS, a cross-check of the numpy dqs); myoskin_pv the same skinner on the hybrid weights. With
     `anchored`: also anchored (band change), bulge_anchored (m, over LBS), crossings_anchored, and the best time per
     frame of the anchored skin (ms_anchored) and of Equation 3 (ms_eq3: rig, transforms and the skinner, built once)."""
-    limb_radius = None
     rig, hj, hw, share, keys = bind_skin(core, character, muscles, hybrid_options, share_options)
     anchored_skin = core.AnchoredSkin(character, muscles) if anchored else None
-    rest = np.asarray(character.vertices)
-    tris = np.asarray(character.triangles)
-    sj, sw = np.asarray(character.weight_joints), np.asarray(character.weight_values)
-    names = list(character.bone_names)
-    heads = np.asarray(character.bone_heads)
-    _, report = core.extract_muscles(character, build_surfaces=False) if limb_radius is None else (None, None)
-    limb_radius = report["limb_radius"]
+    rest, tris, sj, sw, names, heads, limb_radius = skin_arrays(core, character)
     bone_rest = np.asarray(character.bone_rest)
     combined_rest = core.combined_rest_matrices(character, rig)
     rows = []
