@@ -14,19 +14,21 @@ void bindDeformation(py::module_& m) {
                         "Muscles on a skeleton: built once, then evaluate(pose) gives every muscle joint's matrix "
                         "(mesh space; Y = path tangent; translation * rotation * diag(s, stretch, s)).")
       .def(py::init([](const Character& c, const std::vector<Muscle>& muscles, int jointsOverride,
-                       bool distributeTwist, bool twistFollowsBones) {
+                       bool distributeTwist, bool twistFollowsBones, bool jointsSlide) {
              MuscleRigOptions o;
              o.jointsOverride = jointsOverride;
              o.distributeTwist = distributeTwist;
              o.twistFollowsBones = twistFollowsBones;
+             o.jointsSlide = jointsSlide;
              return std::make_unique<PyMuscleRig>(c.skeleton, muscles, o);
            }),
            py::arg("character"), py::arg("muscles"), py::arg("joints_override") = 0,
            py::arg("distribute_twist") = MuscleRigOptions{}.distributeTwist,
            py::arg("twist_follows_bones") = MuscleRigOptions{}.twistFollowsBones,
+           py::arg("joints_slide") = MuscleRigOptions{}.jointsSlide,
            "distribute_twist: the insertion bone's roll turns the joints about the path; twist_follows_bones: "
            "shared as the skeleton shares it (by each joint's rest distance to the two bones), else linearly in "
-           "arc length. Raises ValueError naming the muscle: unknown bones, origin = insertion, bad wrap radius, "
+           "arc length; joints_slide: a joint's motion along its bone follows the muscle (else the bone). Raises ValueError naming the muscle: unknown bones, origin = insertion, bad wrap radius, "
            "origin/insertion inside the wrap sphere or cylinder, joints outside [1, 64].")
       .def_property_readonly("num_muscles", &MuscleRig::numMuscles)
       .def_property_readonly("num_joints", &MuscleRig::numJoints)

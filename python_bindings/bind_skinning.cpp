@@ -73,6 +73,16 @@ DualQuatScale dualQuatScaleArg(const std::string& name) {
 
 namespace {
 
+// A face_mask argument (None or #F bools) as the core's mask (empty = every triangle).
+std::vector<char> faceMaskArg(const std::optional<py::array_t<bool>>& faceMask) {
+  std::vector<char> mask;
+  if (!faceMask) return mask;
+  if (faceMask->ndim() != 1) throw InputError("face_mask must be #F, got shape " + shapeOf(*faceMask));
+  const auto m = faceMask->unchecked<1>();
+  for (py::ssize_t f = 0; f < m.shape(0); ++f) mask.push_back(m(f) ? 1 : 0);
+  return mask;
+}
+
 // Skinner options from the Python arguments; rest_matrices (None or #J by 4 by 4) only with preserve_volume.
 // dqs_share (None or #V values in [0, 1]) the volume blend's per-vertex dual-quaternion shares; rest_matrices are
 // then allowed too (they shape the dual-quaternion part).
@@ -376,18 +386,35 @@ void bindSkinning(py::module_& m) {
       [](const DoubleArray& vertices, const IntArray& triangles, std::optional<py::array_t<bool>> faceMask) {
         const Points v = pointsArg(vertices, "vertices");
         const Triangles t = trianglesArg(triangles, "triangles", v.rows());
-        std::vector<char> mask;
-        if (faceMask) {
-          if (faceMask->ndim() != 1) throw InputError("face_mask must be #F, got shape " + shapeOf(*faceMask));
-          const auto m = faceMask->unchecked<1>();
-          for (py::ssize_t f = 0; f < m.shape(0); ++f) mask.push_back(m(f) ? 1 : 0);
-        }
+        const std::vector<char> mask = faceMaskArg(faceMask);
         py::gil_scoped_release release;
         return selfIntersections(v, t, mask);
       },
       py::arg("vertices"), py::arg("triangles"), py::arg("face_mask") = py::none(),
       "Number of intersecting triangle pairs (neighbours sharing a vertex or edge do not count) among the "
       "triangles where face_mask (#F bools, default all) is set.");
+  m.def(
+      "self_intersecting_pairs",
+      [](const DoubleArray& vertices, const IntArray& triangles, std::optional<py::array_t<bool>> faceMask) {
+        const Points v = pointsArg(vertices, "vertices");
+        const Triangles t = trianglesArg(triangles, "triangles", v.rows());
+        const std::vector<char> mask = faceMaskArg(faceMask);
+        std::vector<std::pair<int, int>> pairs;
+        {
+          py::gil_scoped_release release;
+          pairs = selfIntersectingPairs(v, t, mask);
+        }
+        py::array_t<int32_t> out({static_cast<py::ssize_t>(pairs.size()), py::ssize_t{2}});
+        auto o = out.mutable_unchecked<2>();
+        for (size_t i = 0; i < pairs.size(); ++i) {
+          o(i, 0) = pairs[i].first;
+          o(i, 1) = pairs[i].second;
+        }
+        return out;
+      },
+      py::arg("vertices"), py::arg("triangles"), py::arg("face_mask") = py::none(),
+      "#P by 2 rows of `triangles`: the intersecting pairs self_intersections counts (smaller row first, sorted), so "
+      "a fold can be located.");
   m.def(
       "local_bulge",
       [](const DoubleArray& rest, const IntArray& triangles, const DoubleArray& deformed, const IntArray& joints,

@@ -673,3 +673,49 @@ TEST(MuscleRig, ForearmRollIsDistributedAlongMusclesThatReachIt) {
     EXPECT_TRUE(st.surfaces[0].allFinite());
   }
 }
+
+TEST(MuscleRig, JointsThatDoNotSlideMoveAlongTheirBoneAsTheBoneDoes) {
+  // The biceps across the elbow shortens on flexion: sliding joints ride their stations towards the origin; with
+  // jointsSlide = false each joint's motion along its bone (the chain bone nearest at rest) is the bone's, and its
+  // frame, scale and offset across the bone are the sliding joint's.
+  const Skeleton& s = arm();
+  const Muscle mu = biceps();
+  MuscleRigOptions still;
+  still.jointsSlide = false;
+  const MuscleRig sliding(s, {mu}), fixed(s, {mu}, still);
+  MuscleRigState a = sliding.makeState(), b = fixed.makeState();
+  const Pose rest = restPose(s);
+  fixed.evaluate(rest, b, false);
+  for (int k = 0; k < fixed.numJoints(); ++k)  // rest pose exact
+    EXPECT_LT((b.jointMatrices[k] - fixed.bindMatrices()[k]).norm(), 1e-12) << "joint " << k;
+  const Pose pose = armPose(100 * kPi / 180);
+  sliding.evaluate(pose, a, false);
+  fixed.evaluate(pose, b, false);
+  const double size = (tail("forearm") - head("upper_arm")).norm();
+  double largestSlide = 0.0;
+  int alongEach[2] = {0, 0};
+  for (int k = 0; k < fixed.numJoints(); ++k) {
+    const Vec3 p = fixed.bindMatrices()[k].topRightCorner<3, 1>();
+    auto distance = [&](const char* name) {
+      const Bone& bone = s.bones[s.find(name)];
+      const Vec3 d = bone.tail - bone.head;
+      const double t = std::clamp((p - bone.head).dot(d) / d.squaredNorm(), 0.0, 1.0);
+      return (bone.head + t * d - p).norm();
+    };
+    const bool onForearm = distance("forearm") < distance("upper_arm");
+    ++alongEach[onForearm];
+    const int bone = s.find(onForearm ? "forearm" : "upper_arm");
+    const Mat4 carry = pose.matrices[bone] * rest.matrices[bone].inverse();
+    const Vec3 carried = (carry * p.homogeneous()).head<3>();
+    const Vec3 axis = carry.topLeftCorner<3, 3>() * (s.bones[bone].tail - s.bones[bone].head).normalized();
+    const Vec3 moved = b.jointMatrices[k].topRightCorner<3, 1>(), slid = a.jointMatrices[k].topRightCorner<3, 1>();
+    EXPECT_NEAR((moved - carried).dot(axis), 0.0, 1e-9 * size) << "joint " << k;
+    EXPECT_LT((moved - slid).cross(axis).norm(), 1e-9 * size) << "joint " << k << ": only the motion along the bone changes";
+    EXPECT_LT((b.jointMatrices[k].topLeftCorner<3, 3>() - a.jointMatrices[k].topLeftCorner<3, 3>()).norm(), 1e-12);
+    largestSlide = std::max(largestSlide, std::abs((slid - carried).dot(axis)));
+  }
+  EXPECT_GE(alongEach[0], 1);
+  EXPECT_GE(alongEach[1], 1);
+  EXPECT_GT(largestSlide, 1e-3 * size) << "sliding joints do move along their bone, so the check above can fail";
+  EXPECT_LT(a.stretch[0], 0.99) << "the biceps shortens";
+}

@@ -141,6 +141,19 @@ def test_self_intersections_of_a_folded_elbow(core, arm):
     assert crossings > 0 and none == 0
     with pytest.raises(ValueError, match="entries"):
         core.self_intersections(posed, arm.triangles, np.ones(3, bool))
+    # The pairs themselves locate the fold: as many as counted, sorted, and never two triangles one bone moves
+    # rigidly (rigid motion keeps the rest skin's no crossings), so each pair has skin of both segments or the crease.
+    pairs = core.self_intersecting_pairs(posed, arm.triangles)
+    tris = np.asarray(arm.triangles)
+    assert pairs.shape == (crossings, 2) and (pairs[:, 0] < pairs[:, 1]).all()
+    assert (np.diff(pairs[:, 0]) >= 0).all()
+    values, joints = np.asarray(arm.weight_values), np.asarray(arm.weight_joints)
+    rigid_bone = np.where(values.max(1) > 0.999, joints[np.arange(len(joints)), values.argmax(1)], -1)
+    bone_of = [set(rigid_bone[t]) for t in tris]  # {b}: the triangle moves rigidly with bone b
+    same_rigid = [len(bone_of[a]) == 1 and bone_of[a] == bone_of[b] and -1 not in bone_of[a] for a, b in pairs]
+    assert not any(same_rigid)
+    assert any(len(bone_of[a]) == 1 and -1 not in bone_of[a] for a, _ in pairs)  # the check above has rigid skin to see
+    assert len(core.self_intersecting_pairs(posed, arm.triangles, np.zeros(arm.num_triangles, bool))) == 0
 
 
 def test_pc2_round_trip(core, arm, tmp_path):

@@ -40,6 +40,12 @@ struct MuscleRigOptions {
   // joint; false = linear in arc length. Bones between the two ends are not looked at: along a middle bone of
   // a two-joint muscle the share is about a half.
   bool twistFollowsBones = true;
+  // Whether a muscle joint's position along the bone it lies on follows the muscle (true: the joint rides its
+  // station of the posed path, so a shortening muscle carries the skin over its belly along the limb towards
+  // its origin) or the bone (false: the component of the joint's motion along its bone's axis is that bone's;
+  // the path still sets its offset across the bone, its frame and its scale). The bone is the one of the
+  // origin-to-insertion chain nearest to the joint at rest.
+  bool jointsSlide = true;
 };
 
 // ============================================================================

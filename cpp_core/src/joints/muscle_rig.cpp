@@ -36,6 +36,31 @@ Mat3 orthonormalRotationOf(const Mat4& m) {
 
 Vec3 transformPoint(const Mat4& m, const Vec3& p) { return m.topLeftCorner<3, 3>() * p + m.topRightCorner<3, 1>(); }
 
+// The bone of the chain from bone a to bone b (through their common ancestor) whose segment lies nearest to p.
+int nearestChainBone(const Skeleton& skeleton, int a, int b, const Vec3& p) {
+  std::vector<int> upA, upB;
+  for (int x = a; x >= 0; x = skeleton.bones[x].parent) upA.push_back(x);
+  for (int x = b; x >= 0; x = skeleton.bones[x].parent) upB.push_back(x);
+  std::vector<int> chain;
+  for (int x : upA) {
+    chain.push_back(x);
+    if (std::find(upB.begin(), upB.end(), x) != upB.end()) break;
+  }
+  for (int x : upB) {
+    if (std::find(chain.begin(), chain.end(), x) != chain.end()) break;
+    chain.push_back(x);
+  }
+  int best = a;
+  double bestDistance = std::numeric_limits<double>::infinity();
+  for (int x : chain) {
+    const Vec3 h = skeleton.bones[x].head, d = skeleton.bones[x].tail - h;
+    const double t = d.squaredNorm() > 0 ? std::clamp((p - h).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
+    const double distance = (h + t * d - p).norm();
+    if (distance < bestDistance) best = x, bestDistance = distance;
+  }
+  return best;
+}
+
 // A frame with Y along `y` whose X is the component of `xHint` perpendicular to it.
 Mat3 frameFromY(const Vec3& y, const Vec3& xHint) {
   Vec3 Y = y.normalized();
@@ -72,6 +97,9 @@ struct MuscleModel {
   int stations = 0, jointStride = 0, joints = 0;  // joint k sits on station (2k + 1) * jointStride
   std::vector<double> twistShare;    // #stations: share of the end twist each station turns by
   std::vector<Vec3> jointOffset;     // #joints rest root-curve point in its station's frame
+  std::vector<int> jointBone;        // #joints the chain bone nearest to the joint at rest
+  std::vector<Vec3> jointRestLocal;  // #joints rest joint position in jointBone's rest frame
+  std::vector<Vec3> jointAxisLocal;  // #joints jointBone's unit axis (head to tail) in its rest frame
   joints::BulgeProfile bulge;
   // Surface: each vertex blends stations j and j + 1 with weights (1 - alpha, alpha); local
   // coordinates in each station's rest frame.
@@ -99,6 +127,7 @@ struct MuscleRig::Impl {
   double endTwist(int m, const Pose& pose, const paths::ActionPath& path, const Mat3& F0) const;
   bool distributeTwist = true;
   bool twistFollowsBones = true;
+  bool jointsSlide = true;
 };
 
 void MuscleRig::Impl::posedPath(int m, const Pose& pose, paths::ActionPath& path) const {
@@ -162,6 +191,7 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
   auto impl = std::make_shared<Impl>();
   impl->distributeTwist = options.distributeTwist;
   impl->twistFollowsBones = options.twistFollowsBones;
+  impl->jointsSlide = options.jointsSlide;
   impl->skeleton = skeleton;
   impl->muscles = muscles;
   const Pose rest = restPose(skeleton);
@@ -330,6 +360,12 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
       impl->jointNames.push_back(mu.name + ".j" + std::to_string(k));
       impl->jointMuscle.push_back(static_cast<int>(m));
       impl->jointParent.push_back(mr.originBone);
+      const int bone = nearestChainBone(skeleton, mr.originBone, mr.insertionBone, c);
+      const Mat4 restInverse = rest.matrices[bone].inverse();
+      const Bone& sb = skeleton.bones[bone];
+      mr.jointBone.push_back(bone);
+      mr.jointRestLocal.push_back(restInverse.topLeftCorner<3, 4>() * c.homogeneous());
+      mr.jointAxisLocal.push_back((restInverse.topLeftCorner<3, 3>() * (sb.tail - sb.head)).normalized());
     }
     impl->restLengths.push_back(mr.restLength);
   }
@@ -421,6 +457,12 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
       J.setIdentity();
       J.topLeftCorner<3, 3>() = RS;
       J.topRightCorner<3, 1>() = P[k] + RS * mm.jointOffset[k];
+      if (!im.jointsSlide) {  // the motion along the joint's bone is the bone's
+        const Mat4& B = pose.matrices[mm.jointBone[k]];
+        const Vec3 carried = transformPoint(B, mm.jointRestLocal[k]);
+        const Vec3 axis = (orthonormalRotationOf(B) * mm.jointAxisLocal[k]).normalized();
+        J.topRightCorner<3, 1>() -= (J.topRightCorner<3, 1>() - carried).dot(axis) * axis;
+      }
     }
     if (!withSurfaces) continue;
 
