@@ -66,12 +66,13 @@ for name, row in anchored_rows:
           f"{row['crossings_lbs']:>14d}/{row['crossings_myoskin_pv']}/{row['crossings_anchored']} "
           f"{row['ms_anchored']:11.2f} {row['ms_eq3']:8.2f} {row['ms_anchored'] / row['ms_eq3']:6.2f}")
 print()
-print("Bend sweep (30-150 degrees by 15, ankles 15-60): crossing band triangle pairs, LBS / Myoskin (VB+keys, what Bind gives), '!' "
-      "where Myoskin folds more than LBS, and Myoskin's band change")
+print("Bend sweep (30-150 degrees by 15, ankles 15-60): crossing band triangle pairs, LBS / Myoskin (VB+keys, what Bind gives), "
+      f"in brackets the crumples among them (pairs within {skin_quality.CRUMPLE_RADII} limb radii at rest), '!' where "
+      "Myoskin folds more than LBS, and Myoskin's band change")
 for name, sweep in sweeps:
     for joint in sweep:
-        cells = " ".join(f"{r['degrees']}:{r['crossings_lbs']}/{r['crossings_myoskin_vk']}"
-                         f"{'!' if r['crossings_myoskin_vk'] > r['crossings_lbs'] else ''} {100 * r['myoskin_vk']:+.0f}%"
-                         for r in joint["rows"])
+        cells = " ".join(f"{r['degrees']}:{r['crossings_lbs']}({r['crumples_lbs']})/{r['crossings_myoskin_vk']}"
+                         f"({r['crumples_myoskin_vk']}){'!' if r['crossings_myoskin_vk'] > r['crossings_lbs'] else ''} "
+                         f"{100 * r['myoskin_vk']:+.0f}%" for r in joint["rows"])
         worse = sum(r["crossings_myoskin_vk"] > r["crossings_lbs"] for r in joint["rows"])
         print(f"{name[:24]:24s} {joint['label']:20s} folds more than LBS at {worse} of {len(joint['rows'])}: {cells}")

@@ -15,6 +15,10 @@ Used by benchmarks/bench_skin_quality.py (the table) and the Python tests (the t
 """
 import numpy as np
 
+# Crossing triangle pairs closer than this many limb radii at rest are crumples (`crumples`): well inside one side of a
+# crease, which is about two limb radii across.
+CRUMPLE_RADII = 0.5
+
 # Joints to bend, per rig naming: (label, moving bone, hinge bone, upper-segment bones, direction, degrees). The
 # moving bone and its subtree turn about its head by `degrees`, about the axis perpendicular to the hinge bone and
 # to `direction`: "forward"/"backward" along the character's facing (bent_pose's `facing`, +Z for MakeHuman), or
@@ -169,10 +173,11 @@ def _best_time(f, repeats=5):
     return best
 
 
-def bind_skin(core, character, muscles, hybrid_options=None, share_options=None):
-    """What the default Bind gives the skin, through the core: (rig, hybrid weight joints, their values, the volume
-    blend's shares (compute_dqs_share(character, **share_options)), the volume keys fitted on that skin)."""
-    rig = core.MuscleRig(character, muscles)
+def bind_skin(core, character, muscles, hybrid_options=None, share_options=None, rig_options=None):
+    """What the default Bind gives the skin, through the core: (rig (core.MuscleRig(character, muscles, **rig_options)),
+    hybrid weight joints, their values, the volume blend's shares (compute_dqs_share(character, **share_options)), the
+    volume keys fitted on that skin)."""
+    rig = core.MuscleRig(character, muscles, **(rig_options or {}))
     hj, hw = core.hybrid_weights(character, rig, **(hybrid_options or {}))
     share = np.asarray(core.compute_dqs_share(character, **(share_options or {})))
     keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=hj, weight_values=hw)
@@ -197,13 +202,22 @@ def skin_arrays(core, character):
             report["limb_radius"])
 
 
+def crumples(core, posed, rest, triangles, mask, limb_radius):
+    """Crossing band triangle pairs whose triangles lie within CRUMPLE_RADII limb radii of each other at rest: the skin
+    crumpling on itself (an artifact of the deformation), not skin meeting skin across a crease."""
+    pairs = core.self_intersecting_pairs(posed, triangles, mask)
+    centres = rest[triangles[pairs.ravel()]].mean(1).reshape(-1, 2, 3)
+    return int((np.linalg.norm(centres[:, 0] - centres[:, 1], axis=1) < CRUMPLE_RADII * limb_radius).sum())
+
+
 def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees=tuple(range(30, 151, 15)),
-               degrees_by_label=None):
+               degrees_by_label=None, rig_options=None):
     """Per joint of `joints` (measure's table; the table's angle replaced by each of `degrees`, or of
     degrees_by_label[label] where given): dict(label, rows), rows one dict per angle (degrees, crossings_lbs,
-    crossings_myoskin_vk: self-intersecting band triangle pairs over rest, lbs, myoskin_vk: band volume changes). Bind is
-    done once for all joints; a joint whose bone is missing, or with no skin in its band (printed), is left out."""
-    rig, hj, hw, share, keys = bind_skin(core, character, muscles)
+    crossings_myoskin_vk: self-intersecting band triangle pairs over rest, crumples_lbs, crumples_myoskin_vk: those of
+    them that are crumples (`crumples`), lbs, myoskin_vk: band volume changes). Bind is done once for all joints (the
+    rig made with rig_options); a joint whose bone is missing, or with no skin in its band (printed), is left out."""
+    rig, hj, hw, share, keys = bind_skin(core, character, muscles, rig_options=rig_options)
     rest, tris, sj, sw, names, heads, limb_radius = skin_arrays(core, character)
     radius = 1.5 * limb_radius
     combined_rest = core.combined_rest_matrices(character, rig)
@@ -217,6 +231,7 @@ def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees
             print(f"{label}: no skin within 1.5 limb radii of the joint, not swept")
             continue
         at_rest = core.self_intersections(rest, tris, mask)
+        crumpled_at_rest = crumples(core, rest, rest, tris, mask, limb_radius)
         rows = []
         for deg in (degrees_by_label or {}).get(label, degrees):
             pose = bent_pose(character, bone, hinge, direction, deg, facing)
@@ -225,6 +240,8 @@ def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees
             rows.append(dict(degrees=deg,
                              crossings_lbs=core.self_intersections(lbs, tris, mask) - at_rest,
                              crossings_myoskin_vk=core.self_intersections(vk, tris, mask) - at_rest,
+                             crumples_lbs=crumples(core, lbs, rest, tris, mask, limb_radius) - crumpled_at_rest,
+                             crumples_myoskin_vk=crumples(core, vk, rest, tris, mask, limb_radius) - crumpled_at_rest,
                              lbs=band_volume_change(rest, lbs, tris, heads[b], pose[b][:3, 3], radius),
                              myoskin_vk=band_volume_change(rest, vk, tris, heads[b], pose[b][:3, 3], radius)))
         out.append(dict(label=label, rows=rows))
@@ -232,15 +249,16 @@ def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees
 
 
 def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 0.0, 1.0), anchored=False,
-            share_options=None):
+            share_options=None, rig_options=None):
     """Per joint: dict(label, lbs, dqs, blender_dqs, myoskin, myoskin_pv, myoskin_vb, myoskin_vk band changes, bulge,
     bulge_pv, bulge_vb, bulge_vk (m, over LBS), bulge_pv_over_dqs (m, over blender_dqs), limb_radius). myoskin_vb is the
     volume blend (the hybrid weights skinned (1 - s) linear + s dual quaternions, s = compute_dqs_share(character,
     **share_options)); myoskin_vk the same with its volume keys (compute_volume_keys: what Bind gives). blender_dqs is the core's preserve-volume skinner on the skeleton weights
     (Blender's DQS, a cross-check of the numpy dqs); myoskin_pv the same skinner on the hybrid weights. With
     `anchored`: also anchored (band change), bulge_anchored (m, over LBS), crossings_anchored, and the best time per
-    frame of the anchored skin (ms_anchored) and of Equation 3 (ms_eq3: rig, transforms and the skinner, built once)."""
-    rig, hj, hw, share, keys = bind_skin(core, character, muscles, hybrid_options, share_options)
+    frame of the anchored skin (ms_anchored) and of Equation 3 (ms_eq3: rig, transforms and the skinner, built once).
+    rig_options: core.MuscleRig's keyword options (joints_slide, ...), for the rig every Myoskin skin is made with."""
+    rig, hj, hw, share, keys = bind_skin(core, character, muscles, hybrid_options, share_options, rig_options)
     anchored_skin = core.AnchoredSkin(character, muscles) if anchored else None
     rest, tris, sj, sw, names, heads, limb_radius = skin_arrays(core, character)
     bone_rest = np.asarray(character.bone_rest)

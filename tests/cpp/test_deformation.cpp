@@ -680,9 +680,10 @@ TEST(MuscleRig, JointsThatDoNotSlideMoveAlongTheirBoneAsTheBoneDoes) {
   // frame, scale and offset across the bone are the sliding joint's.
   const Skeleton& s = arm();
   const Muscle mu = biceps();
-  MuscleRigOptions still;
+  MuscleRigOptions slide, still;
+  slide.jointsSlide = true;
   still.jointsSlide = false;
-  const MuscleRig sliding(s, {mu}), fixed(s, {mu}, still);
+  const MuscleRig sliding(s, {mu}, slide), fixed(s, {mu}, still);
   MuscleRigState a = sliding.makeState(), b = fixed.makeState();
   const Pose rest = restPose(s);
   fixed.evaluate(rest, b, false);
