@@ -15,8 +15,8 @@ Used by benchmarks/bench_skin_quality.py (the table) and the Python tests (the t
 """
 import numpy as np
 
-# Crossing triangle pairs closer than this many limb radii at rest are crumples (`crumples`): well inside one side of a
-# crease, which is about two limb radii across.
+# New crossing triangle pairs whose centroids lie closer than this many limb radii at rest are crumples (`crumples`):
+# well inside one side of a crease, which is about two limb radii across.
 CRUMPLE_RADII = 0.5
 
 # Joints to bend, per rig naming: (label, moving bone, hinge bone, upper-segment bones, direction, degrees). The
@@ -202,20 +202,22 @@ def skin_arrays(core, character):
             report["limb_radius"])
 
 
-def crumples(core, posed, rest, triangles, mask, limb_radius):
-    """Crossing band triangle pairs whose triangles lie within CRUMPLE_RADII limb radii of each other at rest: the skin
-    crumpling on itself (an artifact of the deformation), not skin meeting skin across a crease."""
-    pairs = core.self_intersecting_pairs(posed, triangles, mask)
-    centres = rest[triangles[pairs.ravel()]].mean(1).reshape(-1, 2, 3)
+def crumples(pairs, rest_pairs, rest, triangles, limb_radius):
+    """Crumples among a skin's crossing triangle pairs (`pairs`, #P by 2 from self_intersecting_pairs): the pairs not
+    crossing at rest (`rest_pairs`) whose triangles' centroids lie within CRUMPLE_RADII limb radii of each other at
+    rest, the skin folding on itself (an artifact of the deformation), not skin meeting skin across a crease."""
+    crossing_at_rest = {tuple(p) for p in np.asarray(rest_pairs).tolist()}
+    new = np.array([p for p in np.asarray(pairs).tolist() if tuple(p) not in crossing_at_rest], dtype=int).reshape(-1, 2)
+    centres = rest[triangles[new.ravel()]].mean(1).reshape(-1, 2, 3)
     return int((np.linalg.norm(centres[:, 0] - centres[:, 1], axis=1) < CRUMPLE_RADII * limb_radius).sum())
 
 
 def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees=tuple(range(30, 151, 15)),
                degrees_by_label=None, rig_options=None):
     """Per joint of `joints` (measure's table; the table's angle replaced by each of `degrees`, or of
-    degrees_by_label[label] where given): dict(label, rows), rows one dict per angle (degrees, crossings_lbs,
-    crossings_myoskin_vk: self-intersecting band triangle pairs over rest, crumples_lbs, crumples_myoskin_vk: those of
-    them that are crumples (`crumples`), lbs, myoskin_vk: band volume changes). Bind is done once for all joints (the
+    degrees_by_label[label] where given): dict(label, rows, crossings_at_rest: the band's pairs at rest), rows one dict
+    per angle (degrees, crossings_lbs, crossings_myoskin_vk: self-intersecting band triangle pairs over rest,
+    crumples_lbs, crumples_myoskin_vk: the crumples among them (`crumples`), lbs, myoskin_vk: band volume changes). Bind is done once for all joints (the
     rig made with rig_options); a joint whose bone is missing, or with no skin in its band (printed), is left out."""
     rig, hj, hw, share, keys = bind_skin(core, character, muscles, rig_options=rig_options)
     rest, tris, sj, sw, names, heads, limb_radius = skin_arrays(core, character)
@@ -230,21 +232,21 @@ def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees
         if not mask.any():  # a joint deep inside the body (a hip inside a wide pelvis)
             print(f"{label}: no skin within 1.5 limb radii of the joint, not swept")
             continue
-        at_rest = core.self_intersections(rest, tris, mask)
-        crumpled_at_rest = crumples(core, rest, rest, tris, mask, limb_radius)
+        rest_pairs = core.self_intersecting_pairs(rest, tris, mask)
         rows = []
         for deg in (degrees_by_label or {}).get(label, degrees):
             pose = bent_pose(character, bone, hinge, direction, deg, facing)
             lbs = np.asarray(core.skin(rest, sj, sw, core.skeleton_transforms(character, pose)), float)
             vk = binds_skin_at(core, character, rest, pose, rig, hj, hw, share, keys, combined_rest)
+            lbs_pairs, vk_pairs = (core.self_intersecting_pairs(x, tris, mask) for x in (lbs, vk))
             rows.append(dict(degrees=deg,
-                             crossings_lbs=core.self_intersections(lbs, tris, mask) - at_rest,
-                             crossings_myoskin_vk=core.self_intersections(vk, tris, mask) - at_rest,
-                             crumples_lbs=crumples(core, lbs, rest, tris, mask, limb_radius) - crumpled_at_rest,
-                             crumples_myoskin_vk=crumples(core, vk, rest, tris, mask, limb_radius) - crumpled_at_rest,
+                             crossings_lbs=len(lbs_pairs) - len(rest_pairs),
+                             crossings_myoskin_vk=len(vk_pairs) - len(rest_pairs),
+                             crumples_lbs=crumples(lbs_pairs, rest_pairs, rest, tris, limb_radius),
+                             crumples_myoskin_vk=crumples(vk_pairs, rest_pairs, rest, tris, limb_radius),
                              lbs=band_volume_change(rest, lbs, tris, heads[b], pose[b][:3, 3], radius),
                              myoskin_vk=band_volume_change(rest, vk, tris, heads[b], pose[b][:3, 3], radius)))
-        out.append(dict(label=label, rows=rows))
+        out.append(dict(label=label, rows=rows, crossings_at_rest=len(rest_pairs)))
     return out
 
 

@@ -28,7 +28,9 @@ void bindDeformation(py::module_& m) {
            py::arg("joints_slide") = MuscleRigOptions{}.jointsSlide,
            "distribute_twist: the insertion bone's roll turns the joints about the path; twist_follows_bones: "
            "shared as the skeleton shares it (by each joint's rest distance to the two bones), else linearly in "
-           "arc length; joints_slide: a joint's motion along its bone follows the muscle (default True; False: the bone's, so a shortening belly does not carry the skin along the limb). Raises ValueError naming the muscle: unknown bones, origin = insertion, bad wrap radius, "
+           "arc length; joints_slide: a joint's motion along its bone follows the muscle (default True; False: "
+           "the bone's, so a shortening belly does not carry the skin along the limb). Raises ValueError naming the "
+           "muscle: unknown bones, origin = insertion, bad wrap radius, "
            "origin/insertion inside the wrap sphere or cylinder, joints outside [1, 64].")
       .def_property_readonly("num_muscles", &MuscleRig::numMuscles)
       .def_property_readonly("num_joints", &MuscleRig::numJoints)

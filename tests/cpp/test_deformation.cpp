@@ -538,15 +538,19 @@ TEST(MuscleRig, BulgeFactorConcentratesChangeInTheBelly) {
 }
 
 TEST(MuscleRig, EvaluateAllocatesNothingAndIsDeterministic) {
-  const MuscleRig rig(arm(), {biceps(), tricepsWrap(), forearmWrap()});
-  MuscleRigState a = rig.makeState(), b = rig.makeState();
-  const Pose pose = armPose(2.0, 0.8);
-  rig.evaluate(pose, a, true);
-  const long before = gAllocations.load();
-  rig.evaluate(pose, b, true);
-  EXPECT_EQ(gAllocations.load() - before, 0);
-  for (int j = 0; j < rig.numJoints(); ++j) EXPECT_EQ(a.jointMatrices[j], b.jointMatrices[j]);
-  for (int m = 0; m < 3; ++m) EXPECT_EQ(a.surfaces[m], b.surfaces[m]);
+  for (bool slide : {true, false}) {
+    MuscleRigOptions o;
+    o.jointsSlide = slide;
+    const MuscleRig rig(arm(), {biceps(), tricepsWrap(), forearmWrap()}, o);
+    MuscleRigState a = rig.makeState(), b = rig.makeState();
+    const Pose pose = armPose(2.0, 0.8);
+    rig.evaluate(pose, a, true);
+    const long before = gAllocations.load();
+    rig.evaluate(pose, b, true);
+    EXPECT_EQ(gAllocations.load() - before, 0) << "jointsSlide " << slide;
+    for (int j = 0; j < rig.numJoints(); ++j) EXPECT_EQ(a.jointMatrices[j], b.jointMatrices[j]);
+    for (int m = 0; m < 3; ++m) EXPECT_EQ(a.surfaces[m], b.surfaces[m]);
+  }
 }
 
 // ============================================================================
@@ -686,13 +690,35 @@ TEST(MuscleRig, JointsThatDoNotSlideMoveAlongTheirBoneAsTheBoneDoes) {
   const MuscleRig sliding(s, {mu}, slide), fixed(s, {mu}, still);
   MuscleRigState a = sliding.makeState(), b = fixed.makeState();
   const Pose rest = restPose(s);
-  fixed.evaluate(rest, b, false);
+  const double size = (tail("forearm") - head("upper_arm")).norm();
+  fixed.evaluate(rest, b, true);
   for (int k = 0; k < fixed.numJoints(); ++k)  // rest pose exact
     EXPECT_LT((b.jointMatrices[k] - fixed.bindMatrices()[k]).norm(), 1e-12) << "joint " << k;
+  EXPECT_LT((b.surfaces[0] - fixed.restSurface(0).vertices).cwiseAbs().maxCoeff(), 1e-12);
   const Pose pose = armPose(100 * kPi / 180);
-  sliding.evaluate(pose, a, false);
-  fixed.evaluate(pose, b, false);
-  const double size = (tail("forearm") - head("upper_arm")).norm();
+  sliding.evaluate(pose, a, true);
+  fixed.evaluate(pose, b, true);
+  // The surface goes with its joints: the belly's skin-side half (over the upper arm) slides towards the shoulder
+  // with sliding joints and stays with the upper arm without.
+  {
+    const Bone& upper = s.bones[s.find("upper_arm")];
+    const Vec3 axis = (upper.tail - upper.head).normalized();
+    const Points& restSurface = fixed.restSurface(0).vertices;
+    double slid = 0, still = 0;
+    int n = 0;
+    for (int v = 0; v < restSurface.rows(); ++v) {
+      const Vec3 p = restSurface.row(v).transpose();
+      if ((p - upper.head).dot(axis) > 0.7 * (upper.tail - upper.head).norm()) continue;  // the upper arm's part
+      slid += (a.surfaces[0].row(v).transpose() - p).dot(axis);
+      still += (b.surfaces[0].row(v).transpose() - p).dot(axis);
+      ++n;
+    }
+    ASSERT_GT(n, 10);
+    std::printf("biceps surface on the upper arm, mean move along it at 100 degrees: sliding %.2f mm, not %.2f mm\n",
+                1e3 * slid / n, 1e3 * still / n);
+    EXPECT_LT(slid / n, -1e-3 * size);
+    EXPECT_LT(std::abs(still / n), 0.1 * std::abs(slid / n));  // what is left: the belly's own shortening about its stations
+  }
   double largestSlide = 0.0;
   int alongEach[2] = {0, 0};
   for (int k = 0; k < fixed.numJoints(); ++k) {

@@ -36,7 +36,8 @@ Mat3 orthonormalRotationOf(const Mat4& m) {
 
 Vec3 transformPoint(const Mat4& m, const Vec3& p) { return m.topLeftCorner<3, 3>() * p + m.topRightCorner<3, 1>(); }
 
-// The bone of the chain from bone a to bone b (through their common ancestor) whose segment lies nearest to p.
+// The bone of the chain from bone a to bone b (through their common ancestor; both paths to the roots when there is
+// none) whose segment lies nearest to p.
 int nearestChainBone(const Skeleton& skeleton, int a, int b, const Vec3& p) {
   std::vector<int> upA, upB;
   for (int x = a; x >= 0; x = skeleton.bones[x].parent) upA.push_back(x);
@@ -53,12 +54,34 @@ int nearestChainBone(const Skeleton& skeleton, int a, int b, const Vec3& p) {
   int best = a;
   double bestDistance = std::numeric_limits<double>::infinity();
   for (int x : chain) {
-    const Vec3 h = skeleton.bones[x].head, d = skeleton.bones[x].tail - h;
-    const double t = d.squaredNorm() > 0 ? std::clamp((p - h).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
-    const double distance = (h + t * d - p).norm();
+    const double distance = (p - detail::closestOnSegment(p, skeleton.bones[x].head, skeleton.bones[x].tail)).norm();
     if (distance < bestDistance) best = x, bestDistance = distance;
   }
   return best;
+}
+
+// A rest point carried by a bone (MuscleRigOptions::jointsSlide = false): the bone, the point and the bone's unit axis
+// in the bone's rest frame.
+struct BoneCarry {
+  int bone = 0;
+  Vec3 restLocal = Vec3::Zero(), axisLocal = Vec3::UnitY();
+};
+
+BoneCarry carryOnChain(const Skeleton& skeleton, const Pose& rest, int a, int b, const Vec3& p) {
+  BoneCarry c;
+  c.bone = nearestChainBone(skeleton, a, b, p);
+  const Mat4 inverse = rest.matrices[c.bone].inverse();
+  const Bone& bone = skeleton.bones[c.bone];
+  c.restLocal = inverse.topLeftCorner<3, 4>() * p.homogeneous();
+  c.axisLocal = (inverse.topLeftCorner<3, 3>() * (bone.tail - bone.head)).normalized();
+  return c;
+}
+
+// p with its offset along the carrying bone's posed axis from the carried rest point removed.
+Vec3 alongAsTheBone(const BoneCarry& c, const Pose& pose, const Vec3& p) {
+  const Mat4& B = pose.matrices[c.bone];
+  const Vec3 axis = (orthonormalRotationOf(B) * c.axisLocal).normalized();
+  return p - (p - transformPoint(B, c.restLocal)).dot(axis) * axis;
 }
 
 // A frame with Y along `y` whose X is the component of `xHint` perpendicular to it.
@@ -97,9 +120,8 @@ struct MuscleModel {
   int stations = 0, jointStride = 0, joints = 0;  // joint k sits on station (2k + 1) * jointStride
   std::vector<double> twistShare;    // #stations: share of the end twist each station turns by
   std::vector<Vec3> jointOffset;     // #joints rest root-curve point in its station's frame
-  std::vector<int> jointBone;        // #joints the chain bone nearest to the joint at rest
-  std::vector<Vec3> jointRestLocal;  // #joints rest joint position in jointBone's rest frame
-  std::vector<Vec3> jointAxisLocal;  // #joints jointBone's unit axis (head to tail) in its rest frame
+  std::vector<BoneCarry> jointCarry;    // #joints the chain bone nearest to each joint at rest (jointsSlide = false)
+  std::vector<BoneCarry> stationCarry;  // #stations the same for each rest station
   joints::BulgeProfile bulge;
   // Surface: each vertex blends stations j and j + 1 with weights (1 - alpha, alpha); local
   // coordinates in each station's rest frame.
@@ -279,6 +301,8 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
     std::vector<Vec3> P(S);
     paths::framesAt(path, F0, sig.data(), S, F.data(), P.data());
 
+    for (int j = 0; j < S; ++j) mr.stationCarry.push_back(carryOnChain(skeleton, rest, mr.originBone, mr.insertionBone, P[j]));
+
     // Twist share per station: linear in arc length, or by the rest distances to the two bones.
     mr.twistShare.resize(S);
     const Bone &ob = skeleton.bones[mr.originBone], &ib = skeleton.bones[mr.insertionBone];
@@ -360,12 +384,7 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
       impl->jointNames.push_back(mu.name + ".j" + std::to_string(k));
       impl->jointMuscle.push_back(static_cast<int>(m));
       impl->jointParent.push_back(mr.originBone);
-      const int bone = nearestChainBone(skeleton, mr.originBone, mr.insertionBone, c);
-      const Mat4 restInverse = rest.matrices[bone].inverse();
-      const Bone& sb = skeleton.bones[bone];
-      mr.jointBone.push_back(bone);
-      mr.jointRestLocal.push_back(restInverse.topLeftCorner<3, 4>() * c.homogeneous());
-      mr.jointAxisLocal.push_back((restInverse.topLeftCorner<3, 3>() * (sb.tail - sb.head)).normalized());
+      mr.jointCarry.push_back(carryOnChain(skeleton, rest, mr.originBone, mr.insertionBone, c));
     }
     impl->restLengths.push_back(mr.restLength);
   }
@@ -457,12 +476,8 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
       J.setIdentity();
       J.topLeftCorner<3, 3>() = RS;
       J.topRightCorner<3, 1>() = P[k] + RS * mm.jointOffset[k];
-      if (!im.jointsSlide) {  // the motion along the joint's bone is the bone's
-        const Mat4& B = pose.matrices[mm.jointBone[k]];
-        const Vec3 carried = transformPoint(B, mm.jointRestLocal[k]);
-        const Vec3 axis = (orthonormalRotationOf(B) * mm.jointAxisLocal[k]).normalized();
-        J.topRightCorner<3, 1>() -= (J.topRightCorner<3, 1>() - carried).dot(axis) * axis;
-      }
+      if (!im.jointsSlide)  // the motion along the joint's bone is the bone's
+        J.topRightCorner<3, 1>() = alongAsTheBone(mm.jointCarry[k], pose, J.topRightCorner<3, 1>());
     }
     if (!withSurfaces) continue;
 
@@ -470,6 +485,8 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     for (int j = 0; j < S; ++j) sig[j] = path.length * j / (S - 1);
     paths::framesAt(path, F0, sig, S, F, P);
     twisted(S, 0, 1);
+    if (!im.jointsSlide)  // the surface's stations move along their bones as the joints do
+      for (int j = 0; j < S; ++j) P[j] = alongAsTheBone(mm.stationCarry[j], pose, P[j]);
     for (int j = 0; j < S; ++j) {
       const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);
       F[j].col(0) *= s;
