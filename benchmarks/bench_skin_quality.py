@@ -67,7 +67,8 @@ for name, row in anchored_rows:
           f"{row['ms_anchored']:11.2f} {row['ms_eq3']:8.2f} {row['ms_anchored'] / row['ms_eq3']:6.2f}")
 print()
 print("Bend sweep (30-150 degrees by 15, ankles 15-60): crossing band triangle pairs, LBS / Myoskin (VB+keys, what Bind gives), "
-      f"in brackets the crumples among them (pairs within {skin_quality.CRUMPLE_RADII} limb radii at rest), '!' where "
+      "in brackets the crumples among them (new pairs whose triangles' centroids lie within "
+      f"{skin_quality.CRUMPLE_RADII} limb radii at rest), '!' where "
       "Myoskin folds more than LBS, and Myoskin's band change")
 for name, sweep in sweeps:
     for joint in sweep:

@@ -217,8 +217,9 @@ def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees
     """Per joint of `joints` (measure's table; the table's angle replaced by each of `degrees`, or of
     degrees_by_label[label] where given): dict(label, rows, crossings_at_rest: the band's pairs at rest), rows one dict
     per angle (degrees, crossings_lbs, crossings_myoskin_vk: self-intersecting band triangle pairs over rest,
-    crumples_lbs, crumples_myoskin_vk: the crumples among them (`crumples`), lbs, myoskin_vk: band volume changes). Bind is done once for all joints (the
-    rig made with rig_options); a joint whose bone is missing, or with no skin in its band (printed), is left out."""
+    crumples_lbs, crumples_myoskin_vk: the crumples among them (`crumples`), lbs, myoskin_vk: band volume changes).
+    Bind is done once for all joints (the rig made with rig_options); a joint whose bone is missing, or with no skin in
+    its band (printed), is left out."""
     rig, hj, hw, share, keys = bind_skin(core, character, muscles, rig_options=rig_options)
     rest, tris, sj, sw, names, heads, limb_radius = skin_arrays(core, character)
     radius = 1.5 * limb_radius
