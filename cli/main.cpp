@@ -91,7 +91,7 @@ void usage(std::ostream& out) {
          "          prints every key and default), --options a JSON object {KEY: VALUE} applied first\n"
          "  deform CHARACTER [--muscles M.json] --pose P.json -o out.obj|out.pc2 [--dominance D] [--threads N]\n"
          "          [--preserve-volume | --volume-blend] [--dq-scale pivot|blended] [--method eq3|anchored]\n"
-         "          [--relax-iterations N]\n"
+         "          [--joints-slide on|off] [--relax-iterations N]\n"
          "          skin a pose (.obj) or a sequence of poses (.pc2, Blender's Mesh Cache modifier);\n"
          "          --method anchored anchors the skin to muscle ellipsoids, bone capsules and joint spheres\n"
          "          (Schneider & Wilhelms 1998) instead of Equation 3 (eq3, the default);\n"
@@ -99,12 +99,13 @@ void usage(std::ostream& out) {
          "          joints as Blender 4.x/5.x do, or --dq-scale blended as Blender 3.x); --volume-blend mixes\n"
          "          the linear and the dual-quaternion skin per vertex and adds the joints' volume keys, so joints\n"
          "          keep their volume (the add-on's Volume Blend: the shape keys and two Armature modifiers Bind\n"
-         "          adds); pose\n"
+         "          adds); --joints-slide off: along its bone a muscle joint moves as the bone does (the add-on's\n"
+         "          Joints Slide; on, the default: it rides its station of the action path); pose\n"
          "          files: {\"bones\": {name: {\"rotation_quaternion\": [w,x,y,z]}}} or {\"frames\": [...]}\n"
          "  simulate CHARACTER --pose SEQUENCE.json -o out.pc2 [--muscles M.json] [--jiggle] [--filter]\n"
          "          [--sculpt SCULPT.obj [--sculpt-frame F]] [--frames A-B] [--state-in S.json] [--state-out S.json]\n"
          "          [--fps F (24)] [--jiggle-frequency HZ (5)] [--jiggle-damping RATIO (0.3)] [--jiggle-amount A (1)]\n"
-         "          [--preserve-volume] [--dominance D] [--threads N] [--skin-solve]\n"
+         "          [--preserve-volume] [--dominance D] [--joints-slide on|off] [--threads N] [--skin-solve]\n"
          "          simulate a sequence to a PC2 cache: jiggle of the muscle masses, a temporal filter against jitter,\n"
          "          detail sculpted on one frame re-applied on every frame; --frames with --state-in/--state-out\n"
          "          bakes chunks in separate processes that stitch to the same result as one run\n"
@@ -343,7 +344,7 @@ bool endsWith(const std::string& s, const std::string& suffix) {
 
 // The anchored-skin deformer over every frame of the pose file (--method anchored).
 int deformAnchored(const Args& args, const Character& c, const PoseSequence& poses, const std::string& out, bool pc2) {
-  for (const char* o : {"--dominance", "--dq-scale"})
+  for (const char* o : {"--dominance", "--dq-scale", "--joints-slide"})
     if (args.options.count(o)) throw InputError(std::string("deform: ") + o + " is for --method eq3");
   if (!args.flags.empty()) throw InputError("deform: '" + args.flags[0] + "' is not an option of --method anchored");
   const std::vector<Muscle> muscles =
@@ -402,13 +403,20 @@ BoundSkin bindFromArgs(const Args& args, const std::string& command, const std::
     else if (mode != "pivot")
       throw InputError("--dq-scale must be pivot (Blender 4.x/5.x) or blended (Blender 3.x), got '" + mode + "'");
   }
-  if (args.options.count("--dominance") && !args.options.count("--muscles"))
-    throw InputError(command + ": --dominance needs --muscles");
+  for (const char* o : {"--dominance", "--joints-slide"})
+    if (args.options.count(o) && !args.options.count("--muscles"))
+      throw InputError(command + ": " + o + " needs --muscles");
+  MuscleRigOptions rigOptions;
+  if (args.options.count("--joints-slide")) {
+    const std::string slide = args.options.at("--joints-slide");
+    if (slide != "on" && slide != "off") throw InputError("--joints-slide must be on or off, got '" + slide + "'");
+    rigOptions.jointsSlide = slide == "on";
+  }
   b.character = loadArgCharacter(args, command);
   const Character& c = b.character;
   b.weights = c.weights;
   if (args.options.count("--muscles")) {
-    b.rig = std::make_unique<MuscleRig>(c.skeleton, readMusclesJson(args.options.at("--muscles")));
+    b.rig = std::make_unique<MuscleRig>(c.skeleton, readMusclesJson(args.options.at("--muscles")), rigOptions);
     HybridWeightOptions ho;
     ho.dominance = numberOption(args, "--dominance", ho.dominance);
     b.weights = computeHybridWeights(c.mesh, c.weights, *b.rig, ho);
@@ -629,12 +637,13 @@ int main(int argc, char** argv) {
     if (command == "deform")
       return cmdDeform(
           parse(argc, argv, 2, {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh", "--dq-scale",
-                                   "--method", "--relax-iterations"}));
+                                   "--method", "--relax-iterations", "--joints-slide"}));
     if (command == "simulate")
       return cmdSimulate(parse(argc, argv, 2,
                                {"--output", "--muscles", "--pose", "--skeleton", "--dominance", "--threads", "--mesh",
                                 "--dq-scale", "--fps", "--frames", "--state-in", "--state-out", "--sculpt",
-                                "--sculpt-frame", "--jiggle-frequency", "--jiggle-damping", "--jiggle-amount"}));
+                                "--sculpt-frame", "--jiggle-frequency", "--jiggle-damping", "--jiggle-amount",
+                                "--joints-slide"}));
     std::fprintf(stderr, "myoskin: error: unknown command '%s' (try myoskin --help)\n", command.c_str());
     return 2;
   } catch (const InputError& e) {

@@ -32,6 +32,7 @@ void bindDeformation(py::module_& m) {
            "the bone's, so a shortening belly does not carry the skin along the limb). Raises ValueError naming the "
            "muscle: unknown bones, origin = insertion, bad wrap radius, "
            "origin/insertion inside the wrap sphere or cylinder, joints outside [1, 64].")
+      .def_property_readonly("joints_slide", &MuscleRig::jointsSlide)
       .def_property_readonly("num_muscles", &MuscleRig::numMuscles)
       .def_property_readonly("num_joints", &MuscleRig::numJoints)
       .def_property_readonly("joint_names", &MuscleRig::jointNames)

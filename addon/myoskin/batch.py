@@ -92,6 +92,10 @@ def parse_args(argv):
     p.add_argument("--volume-blend", choices=("on", "off"), default=None,
                    help="with --bind: the volume blend (linear and dual-quaternion skin mixed per vertex so joints "
                         "keep their volume; default: the rig's setting, on)")
+    p.add_argument("--joints-slide", choices=("on", "off"), default=None,
+                   help="with --bind: muscle joints ride their action paths along the limb (on, the paper; default: "
+                        "the rig's setting, on) or move along their bones as the bones do (off: less skin folding "
+                        "on itself under the volume blend, less crease in linear and Preserve Volume skinning)")
     p.add_argument("--max-influences", type=int, default=0, metavar="N",
                    help="bones and muscle joints per vertex after --bind (default: the rig's setting, 8; 4 for game engines)")
     p.add_argument("--bake", metavar="A-B", help="bake the muscle joints to keyframes over frames A-B")
@@ -355,6 +359,8 @@ def main(argv):
             state.deformer = args.deformer.upper()
         if args.volume_blend:
             state.volume_blend = args.volume_blend == "on"
+        if args.joints_slide:
+            state.joints_slide = args.joints_slide == "on"
         if args.max_influences:
             if not 1 <= args.max_influences <= 16:
                 fail(f"--max-influences must be in 1..16, got {args.max_influences}")

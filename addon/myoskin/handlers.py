@@ -125,9 +125,21 @@ def on_volume_blend_changed(arm_obj, state):
                                       f"volume blend's shares ({', '.join(waiting)})")
 
 
+def on_joints_slide_changed(arm_obj, state):
+    """Joints Slide toggled: a bound rig's joints and volume keys were made for the other rig, so it binds again
+    (Auto Rebind's timer; marked edited, and a message says so, when Auto Rebind is off)."""
+    if not state.bound:
+        return
+    state.dirty = True
+    if state.auto_rebind:
+        schedule_rebind(arm_obj.name)
+    else:
+        runtime.report_error(arm_obj, f"Joints Slide on '{arm_obj.name}' takes effect at the next Bind")
+
+
 CALLBACKS = {"settings_changed": on_settings_changed, "renamed": muscle_io.on_renamed,
              "live_changed": live.on_live_changed, "preserve_volume_changed": on_preserve_volume_changed,
-             "volume_blend_changed": on_volume_blend_changed}
+             "volume_blend_changed": on_volume_blend_changed, "joints_slide_changed": on_joints_slide_changed}
 
 
 def register():

@@ -42,6 +42,12 @@ from . import anim_compat, binding, blender_io, core_loader, core_skin, muscle_i
 stats = {"predicted": 0, "written": 0, "deferred": 0, "posed": 0}
 
 
+def joints_slide(record):
+    """The bind record's MuscleRig joints_slide (binding.joints_slide at Bind, following Volume Blend after it; a
+    record from before the choice was bound with sliding joints)."""
+    return bool(record.get("joints_slide", True))
+
+
 class LiveRig:
     """A MuscleRig built from an armature's bind record, plus index arrays into its pose bones."""
 
@@ -52,7 +58,7 @@ class LiveRig:
         self.joint_names = record["joint_names"]
         self.character = skeleton_character(record)
         muscles = [core.reattach_muscle(m) for m in core.muscles_from_json(record["muscles"])]
-        self.rig = core.MuscleRig(self.character, muscles)
+        self.rig = core.MuscleRig(self.character, muscles, joints_slide=joints_slide(record))
         if list(self.rig.joint_names) != self.joint_names:
             raise ValueError(f"'{arm_obj.name}': the bind record's joints do not match its muscles: bind again")
         self.surface_names = record.get("surfaces", [])
@@ -129,7 +135,7 @@ def apply_settings_to_bound(arm_obj):
     record = binding.read_bind_record(arm_obj)
     try:
         muscles = [core.reattach_muscle(m) for m in muscle_io.state_to_core(arm_obj)]
-        rig = core.MuscleRig(skeleton_character(record), muscles)
+        rig = core.MuscleRig(skeleton_character(record), muscles, joints_slide=joints_slide(record))
     except ValueError:
         return False
     old = live_rig(arm_obj).rig

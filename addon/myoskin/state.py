@@ -32,6 +32,8 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
                                           Armature modifier with Preserve Volume + Multi Modifier after the first,
                                           which stays linear over the group myoskin_linear); a bound rig follows
                                           a switch at once; Unbind removes all of it
+        .joints_slide                     Bind builds the MuscleRig with joints_slide (the bind record keeps it;
+                                          a switch on a bound rig binds again)
         .bind_text                        Text datablock "<armature>.bind.json", the bind record: skeleton
                                           (names, parents, heads, tails, rest), the bound muscles' json,
                                           joint names, surface object names (live update rebuilds from it)
@@ -90,6 +92,7 @@ _name_changed = _dispatching("renamed", "could not rename '{item}'")
 _preserve_volume_changed = _dispatching("preserve_volume_changed", "could not switch Preserve Volume of '{rig}'")
 _volume_blend_changed = _dispatching("volume_blend_changed", "could not switch Volume Blend of '{rig}'")
 _live_changed = _dispatching("live_changed", "could not switch live update of '{rig}'")
+_joints_slide_changed = _dispatching("joints_slide_changed", "could not switch Joints Slide of '{rig}'")
 
 
 class MyoskinMuscle(bpy.types.PropertyGroup):
@@ -189,6 +192,13 @@ class MyoskinRigState(bpy.types.PropertyGroup):
                     "'myoskin_dqs_share' and adds a second Armature modifier (Preserve Volume, Multi Modifier) "
                     "after the first, which turns linear; Unbind removes both. Overrides Preserve Volume; a bound "
                     "rig follows at once (one bound with it off binds again first; Muscle Joints deformer)")
+    joints_slide: BoolProperty(
+        name="Joints Slide", default=True, update=_joints_slide_changed,
+        description="Muscle joints ride their stations of the action path, so a shortening muscle carries the skin "
+                    "over its belly along the limb (the paper). Off: along its bone a joint moves as the bone does; "
+                    "the muscle still lifts, turns and bulges it. Off roughly halves the skin folding on itself at "
+                    "mid-angle elbows of the generated bodies under the Volume Blend and raises the bulge, but "
+                    "linear and Preserve Volume skinning lose the elbow's crease. A bound rig binds again")
     deformer: EnumProperty(
         name="Deformer", default='JOINTS',
         items=(('JOINTS', "Muscle Joints", "The paper's Equation 3: the muscle joints are deform bones blended with "

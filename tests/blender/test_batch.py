@@ -90,12 +90,14 @@ def test_batch_blend_extract_bind_bake():
 
 
 def test_batch_volume_blend_on_by_default_and_off_on_request():
-    """--bind writes the volume blend (the share group and the second Armature modifier) unless --volume-blend off."""
+    """--bind writes the volume blend (the share group and the second Armature modifier) unless --volume-blend off;
+    the muscle joints slide unless --joints-slide off (the setting and the bind record's rig)."""
     src = os.path.join(TMP, "arm_vb.blend")
     skin_name, arm_name = arm_blend(src)
     for flag, expected in ((None, True), ("off", False)):
         out = os.path.join(TMP, f"vb_{flag}.blend")
-        code, log = batch("extract", "--bind", *(["--volume-blend", flag] if flag else []), "-o", out, blend=src)
+        code, log = batch("extract", "--bind", *(["--volume-blend", flag, "--joints-slide", flag] if flag else []),
+                          "-o", out, blend=src)
         assert code == 0, log
         bpy.ops.wm.open_mainfile(filepath=out)
         skin, arm = bpy.data.objects[skin_name], bpy.data.objects[arm_name]
@@ -103,6 +105,7 @@ def test_batch_volume_blend_on_by_default_and_off_on_request():
         assert (binding.volume_blend_modifier(skin, arm) is not None) == expected, flag
         assert (binding.VOLUME_BLEND_GROUP in skin.vertex_groups) == expected, flag
         assert binding.armature_modifier(skin, arm).use_deform_preserve_volume != expected, flag
+        assert arm.myoskin.joints_slide == binding.read_bind_record(arm)["joints_slide"] == expected, flag
 
 
 def cli_command():

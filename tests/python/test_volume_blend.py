@@ -110,6 +110,27 @@ def test_cli_deform_volume_blend_matches_the_module(core, tmp_path):
     expected = core.skin(keyed, joints, weights, t, dqs_share=share, rest_matrices=rest)
     assert np.abs(frames[0] - character.vertices).max() < 1e-6
     assert np.abs(frames[1] - expected).max() < 1e-5
+    # --joints-slide off: the rig of MuscleRig(joints_slide=False), its volume keys fitted on it (the add-on's Joints
+    # Slide off); its skin differs from the sliding one's
+    r = run_cli("deform", str(tmp_path / "arm.obj"), "--muscles", str(tmp_path / "m.json"), "--pose",
+                str(tmp_path / "seq.json"), "-o", str(tmp_path / "fixed.pc2"), "--volume-blend", "--joints-slide", "off")
+    assert r.returncode == 0, r.stderr
+    fixed = core.read_pc2(str(tmp_path / "fixed.pc2"))["frames"]
+    rig_fixed, fj, fw, _, fixed_keys = skin_quality.bind_skin(core, character, core.read_muscles(str(tmp_path / "m.json")),
+                                                             rig_options=dict(joints_slide=False))
+    assert not rig_fixed.joints_slide and rig.joints_slide
+    tf = core.skinning_transforms(character, pose, rig_fixed, rig_fixed.evaluate(pose)["joint_matrices"])
+    keyed_fixed = skin_quality.with_volume_keys(core, character, character.vertices, fixed_keys, pose)
+    expected_fixed = core.skin(keyed_fixed, fj, fw, tf, dqs_share=share, rest_matrices=rest)
+    assert np.abs(fixed[0] - character.vertices).max() < 1e-6
+    assert np.abs(fixed[1] - expected_fixed).max() < 1e-5
+    assert np.abs(fixed[1] - expected).max() > 1e-4
+    r = run_cli("deform", str(tmp_path / "arm.obj"), "--muscles", str(tmp_path / "m.json"), "--pose",
+                str(tmp_path / "seq.json"), "-o", str(tmp_path / "x.pc2"), "--joints-slide", "no")
+    assert r.returncode == 1 and "--joints-slide must be on or off" in r.stderr, r.stderr
+    r = run_cli("deform", str(tmp_path / "arm.obj"), "--pose", str(tmp_path / "seq.json"), "-o",
+                str(tmp_path / "x.pc2"), "--joints-slide", "off")
+    assert r.returncode == 1 and "--joints-slide needs --muscles" in r.stderr, r.stderr
     r = run_cli("deform", str(tmp_path / "arm.obj"), "--pose", str(tmp_path / "seq.json"), "-o",
                 str(tmp_path / "out.pc2"), "--volume-blend", "--preserve-volume")
     assert r.returncode == 1 and "exclude each other" in r.stderr, r.stderr

@@ -223,6 +223,7 @@ class MYOSKIN_PT_bind(_WorkflowStep, bpy.types.Panel):
         row = layout.row()
         row.active = not state.volume_blend
         row.prop(state, "preserve_volume")
+        layout.prop(state, "joints_slide")
         if state.bound:
             skins = rig_skins(arm)
             layout.label(text=f"Bound to {', '.join(o.name for o in skins) if skins else '?'}", icon='CHECKMARK')

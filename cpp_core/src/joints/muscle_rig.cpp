@@ -406,6 +406,7 @@ const std::vector<Mat4>& MuscleRig::bindMatrices() const { return impl_->bind; }
 const std::vector<double>& MuscleRig::restLengths() const { return impl_->restLengths; }
 const std::vector<Muscle>& MuscleRig::muscles() const { return impl_->muscles; }
 const Skeleton& MuscleRig::skeleton() const { return impl_->skeleton; }
+bool MuscleRig::jointsSlide() const { return impl_->jointsSlide; }
 const Mesh& MuscleRig::restSurface(int m) const { return impl_->models.at(m).surface; }
 
 MuscleRigState MuscleRig::makeState() const {
