@@ -32,7 +32,7 @@ anchored_rows = []
 sweeps = []
 print(f"{'character':24s} {'joint':20s} {'LBS band':>9s} {'DQS band':>9s} {'Blender DQS':>11s} {'Myoskin':>9s} "
       f"{'Myoskin+PV':>10s} {'Myoskin+VB':>10s} {'VB+keys':>8s} {'bulge over LBS':>22s} {'+PV over LBS':>12s} {'+PV over DQS':>12s} "
-      f"{'crossings LBS/DQS/Myo/Myo+PV/Myo+VB/VB+keys':>44s}")
+      f"{'crossings LBS/DQS/Myo/Myo+PV/Myo+VB/VB+keys':>44s} {'(crumples LBS/VB+keys)':>22s}")
 for name, relative, joints, facing in characters:
     if relative is None:
         character, _truth = core.make_synthetic_body(seed=21)
@@ -44,19 +44,23 @@ for name, relative, joints, facing in characters:
         character = core.load_character(path, require_weights=True)
     start = time.perf_counter()
     muscles, _ = core.extract_muscles(character)
-    for row in skin_quality.measure(core, character, muscles, joints, facing=facing, anchored=True):
+    bound = skin_quality.bind_skin(core, character, muscles)  # Bind once: the table and the sweep reuse it
+    for row in skin_quality.measure(core, character, muscles, joints, facing=facing, anchored=True, bound=bound):
         anchored_rows.append((name, row))
         print(f"{name[:24]:24s} {row['label']:20s} {100 * row['lbs']:+8.1f}% {100 * row['dqs']:+8.1f}% "
               f"{100 * row['blender_dqs']:+10.1f}% {100 * row['myoskin']:+8.1f}% {100 * row['myoskin_pv']:+9.1f}% "
               f"{100 * row['myoskin_vb']:+9.1f}% {100 * row['myoskin_vk']:+7.1f}% "
               f"{1000 * row['bulge']:7.1f} mm ({row['bulge'] / row['limb_radius']:.3f} r) {1000 * row['bulge_pv']:9.1f} mm {1000 * row['bulge_pv_over_dqs']:9.1f} mm "
               f"{row['crossings_lbs']:>15d}/{row['crossings_dqs']}/{row['crossings_myoskin']}/{row['crossings_myoskin_pv']}"
-              f"/{row['crossings_myoskin_vb']}/{row['crossings_myoskin_vk']}")
+              f"/{row['crossings_myoskin_vb']}/{row['crossings_myoskin_vk']} "
+              f"({row['crumples_lbs']}/{row['crumples_myoskin_vk']})")
     print(f"{name}: {len(muscles)} muscles, measured in {time.perf_counter() - start:.1f} s")
     # A human ankle plantar-flexes about 50 degrees at most: its sweep stops at 60 (a horse's hock sweeps to 150).
     ankles = {j[0]: (15, 30, 45, 60) for j in joints if j[0].startswith("ankle")}
+    fixed = skin_quality.fold_sweep(core, character, muscles, joints, facing=facing, degrees_by_label=ankles,
+                                    rig_options=dict(joints_slide=False))
     sweeps.append((name, skin_quality.fold_sweep(core, character, muscles, joints, facing=facing,
-                                                 degrees_by_label=ankles)))
+                                                 degrees_by_label=ankles, bound=bound), fixed))
 print()
 print(f"{'character':24s} {'joint':20s} {'LBS band':>9s} {'Myoskin+PV':>10s} {'anchored':>9s} {'anchored bulge over LBS':>24s} "
       f"{'crossings LBS/+PV/anchored':>27s} {'anchored ms':>11s} {'Eq.3 ms':>8s} {'ratio':>6s}")
@@ -70,10 +74,27 @@ print("Bend sweep (30-150 degrees by 15, ankles 15-60): crossing band triangle p
       "in brackets the crumples among them (new pairs whose triangles' centroids lie within "
       f"{skin_quality.CRUMPLE_RADII} limb radii at rest), '!' where "
       "Myoskin folds more than LBS, and Myoskin's band change")
-for name, sweep in sweeps:
+for name, sweep, _fixed in sweeps:
     for joint in sweep:
         cells = " ".join(f"{r['degrees']}:{r['crossings_lbs']}({r['crumples_lbs']})/{r['crossings_myoskin_vk']}"
                          f"({r['crumples_myoskin_vk']}){'!' if r['crossings_myoskin_vk'] > r['crossings_lbs'] else ''} "
                          f"{100 * r['myoskin_vk']:+.0f}%" for r in joint["rows"])
         worse = sum(r["crossings_myoskin_vk"] > r["crossings_lbs"] for r in joint["rows"])
         print(f"{name[:24]:24s} {joint['label']:20s} folds more than LBS at {worse} of {len(joint['rows'])}: {cells}")
+
+
+def total(sweep, key):
+    return sum(r[key] for joint in sweep for r in joint["rows"])
+
+
+def over_lbs(sweep):
+    return sum(r["crossings_myoskin_vk"] > r["crossings_lbs"] for joint in sweep for r in joint["rows"])
+
+
+print()
+print("Joints Slide off (MuscleRig joints_slide=False, the rig setting) against on (the default), the same sweep: crumples "
+      "and the (joint, angle) cases folding more than LBS, summed over each character's joints")
+for name, sweep, fixed in sweeps:
+    print(f"{name[:24]:24s} crumples LBS {total(sweep, 'crumples_lbs')}, on {total(sweep, 'crumples_myoskin_vk')}, off "
+          f"{total(fixed, 'crumples_myoskin_vk')}; cases over LBS on {over_lbs(sweep)}, off {over_lbs(fixed)} of "
+          f"{sum(len(joint['rows']) for joint in sweep)}")

@@ -213,14 +213,17 @@ def crumples(pairs, rest_pairs, rest, triangles, limb_radius):
 
 
 def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees=tuple(range(30, 151, 15)),
-               degrees_by_label=None, rig_options=None):
+               degrees_by_label=None, rig_options=None, bound=None):
     """Per joint of `joints` (measure's table; the table's angle replaced by each of `degrees`, or of
     degrees_by_label[label] where given): dict(label, rows, crossings_at_rest: the band's pairs at rest), rows one dict
     per angle (degrees, crossings_lbs, crossings_myoskin_vk: self-intersecting band triangle pairs over rest,
     crumples_lbs, crumples_myoskin_vk: the crumples among them (`crumples`), lbs, myoskin_vk: band volume changes).
-    Bind is done once for all joints (the rig made with rig_options); a joint whose bone is missing, or with no skin in
-    its band (printed), is left out."""
-    rig, hj, hw, share, keys = bind_skin(core, character, muscles, rig_options=rig_options)
+    Bind is done once for all joints (the rig made with rig_options), or given as `bound` (bind_skin's result, reused;
+    then without rig_options);
+    a joint whose bone is missing, or with no skin in its band (printed), is left out."""
+    if bound and rig_options:
+        raise ValueError("fold_sweep: give rig_options or bound (a Bind made with its own options), not both")
+    rig, hj, hw, share, keys = bound or bind_skin(core, character, muscles, rig_options=rig_options)
     rest, tris, sj, sw, names, heads, limb_radius = skin_arrays(core, character)
     radius = 1.5 * limb_radius
     combined_rest = core.combined_rest_matrices(character, rig)
@@ -252,7 +255,7 @@ def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees
 
 
 def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 0.0, 1.0), anchored=False,
-            share_options=None, rig_options=None):
+            share_options=None, rig_options=None, bound=None):
     """Per joint: dict(label, lbs, dqs, blender_dqs, myoskin, myoskin_pv, myoskin_vb, myoskin_vk band changes, bulge,
     bulge_pv, bulge_vb, bulge_vk (m, over LBS), bulge_pv_over_dqs (m, over blender_dqs), limb_radius). myoskin_vb is the
     volume blend (the hybrid weights skinned (1 - s) linear + s dual quaternions, s = compute_dqs_share(character,
@@ -260,8 +263,12 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
     (Blender's DQS, a cross-check of the numpy dqs); myoskin_pv the same skinner on the hybrid weights. With
     `anchored`: also anchored (band change), bulge_anchored (m, over LBS), crossings_anchored, and the best time per
     frame of the anchored skin (ms_anchored) and of Equation 3 (ms_eq3: rig, transforms and the skinner, built once).
-    rig_options: core.MuscleRig's keyword options (joints_slide, ...), for the rig every Myoskin skin is made with."""
-    rig, hj, hw, share, keys = bind_skin(core, character, muscles, hybrid_options, share_options, rig_options)
+    rig_options: core.MuscleRig's keyword options (joints_slide, ...), for the rig every Myoskin skin is made with;
+    `bound`: bind_skin's result, reused instead (the three options are then not read). Also crumples_lbs and
+    crumples_myoskin_vk: the crumples (`crumples`) among the crossing pairs."""
+    if bound and (hybrid_options or share_options or rig_options):
+        raise ValueError("measure: give the options or bound (a Bind made with its own options), not both")
+    rig, hj, hw, share, keys = bound or bind_skin(core, character, muscles, hybrid_options, share_options, rig_options)
     anchored_skin = core.AnchoredSkin(character, muscles) if anchored else None
     rest, tris, sj, sw, names, heads, limb_radius = skin_arrays(core, character)
     bone_rest = np.asarray(character.bone_rest)
@@ -303,11 +310,14 @@ def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 
             print(f"{label}: no skin within 1.5 limb radii of the joint, not measured")
             continue
         mask = band_triangles(rest, tris, joint_rest, 1.5 * limb_radius)
-        at_rest = core.self_intersections(rest, tris, mask)
-        crossings = {"crossings_" + k: core.self_intersections(v, tris, mask) - at_rest
-                     for k, v in (("lbs", lbs), ("dqs", blender_dq), ("myoskin", myo), ("myoskin_pv", myo_pv),
-                                  ("myoskin_vb", myo_vb), ("myoskin_vk", myo_vk))
-                     + ((("anchored", anch),) if anchored_skin is not None else ())}
+        rest_pairs = core.self_intersecting_pairs(rest, tris, mask)
+        pairs = {k: core.self_intersecting_pairs(v, tris, mask)
+                 for k, v in (("lbs", lbs), ("dqs", blender_dq), ("myoskin", myo), ("myoskin_pv", myo_pv),
+                              ("myoskin_vb", myo_vb), ("myoskin_vk", myo_vk))
+                 + ((("anchored", anch),) if anchored_skin is not None else ())}
+        crossings = {"crossings_" + k: len(p) - len(rest_pairs) for k, p in pairs.items()}
+        crossings.update({"crumples_" + k: crumples(pairs[k], rest_pairs, rest, tris, limb_radius)
+                          for k in ("lbs", "myoskin_vk")})
         upper_ids = [names.index(u) for u in upper if u in names]
         dominant = sj[np.arange(len(sj)), np.argmax(sw, axis=1)]
         on_upper = np.isin(dominant, upper_ids)

@@ -308,6 +308,10 @@ def chunk_states(state_in, state_out):
 
 def main(argv):
     args = parse_args(argv)
+    for flag, value in (("--deformer", args.deformer), ("--volume-blend", args.volume_blend),
+                        ("--joints-slide", args.joints_slide), ("--max-influences", args.max_influences)):
+        if value and not args.bind:
+            fail(f"{flag} needs --bind (a setting of the bind)")
     for target in (args.output, args.pc2, args.gltf):
         if target and writable_target(os.path.abspath(target)):
             fail(f"cannot save {os.path.abspath(target)}: {writable_target(os.path.abspath(target))}")
@@ -360,6 +364,8 @@ def main(argv):
         if args.volume_blend:
             state.volume_blend = args.volume_blend == "on"
         if args.joints_slide:
+            if state.deformer == 'ANCHORED':
+                fail("--joints-slide is for the muscle joints deformer (the anchored skin does not use the joints)")
             state.joints_slide = args.joints_slide == "on"
         if args.max_influences:
             if not 1 <= args.max_influences <= 16:

@@ -331,7 +331,6 @@ def bind(context, skins, arm):
     muscles = [core.reattach_muscle(m, character=character) for m in muscle_io.state_to_core(arm)]
     if not muscles:
         raise ValueError(f"Every muscle of '{arm.name}' is disabled: enable at least one to bind")
-    volume_blend = bool(state.volume_blend) and state.deformer != 'ANCHORED'
     rig = core.MuscleRig(character, muscles, joints_slide=bool(state.joints_slide))
     stuffing = core_skin.stuffing_of(arm) if state.deformer == 'ANCHORED' else []
     if stuffing:  # the core's own checks of the artist's ellipsoids, before anything changes
@@ -341,6 +340,7 @@ def bind(context, skins, arm):
         raise ValueError(f"Bind: {joints.shape[0]} weight rows for the {character.num_vertices} vertices of "
                          f"'{arm.name}''s character")
     # Volume blend: the shares from the skeleton weights of the combined character (before anything changes)
+    volume_blend = bool(state.volume_blend) and state.deformer != 'ANCHORED'
     share = (np.asarray(core.compute_dqs_share(character, unblended_share=unblended_share(skins, arm)),
                         dtype=np.float64) if volume_blend else None)
     names = list(character.bone_names)

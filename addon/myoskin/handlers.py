@@ -85,7 +85,7 @@ def rebind_pending(force=False):
                     live.update_armature(arm, force=True)
                 except (ValueError, RuntimeError) as e:
                     state.dirty = True
-                    runtime.report_error(arm, f"'{name}' not bound again after the locator move: {e} (use Bind)")
+                    runtime.report_error(arm, f"'{name}' not bound again after the edit: {e} (use Bind)")
         finally:
             pending["armatures"].clear()
     return None
@@ -115,26 +115,31 @@ def on_volume_blend_changed(arm_obj, state):
     """Volume Blend toggled: a bound rig's modifiers follow at once; a rig bound with it off has no shares yet, so
     it binds again (Auto Rebind's timer; marked edited, and a message says so, when Auto Rebind is off)."""
     waiting = binding.apply_volume_blend(arm_obj)
-    if not waiting:
-        return
+    if waiting:
+        _bind_again(arm_obj, state, f"Volume Blend on '{arm_obj.name}' needs a Bind: it was bound without the "
+                                    f"volume blend's shares ({', '.join(waiting)})")
+
+
+def _bind_again(arm_obj, state, message):
+    """A setting a bound rig was built with changed: mark it edited and bind again (Auto Rebind's timer), or say
+    `message` when Auto Rebind is off."""
     state.dirty = True
     if state.auto_rebind:
         schedule_rebind(arm_obj.name)
     else:
-        runtime.report_error(arm_obj, f"Volume Blend on '{arm_obj.name}' needs a Bind: it was bound without the "
-                                      f"volume blend's shares ({', '.join(waiting)})")
+        runtime.report_error(arm_obj, message)
 
 
 def on_joints_slide_changed(arm_obj, state):
-    """Joints Slide toggled: a bound rig's joints and volume keys were made for the other rig, so it binds again
-    (Auto Rebind's timer; marked edited, and a message says so, when Auto Rebind is off)."""
+    """Joints Slide toggled: a bound Muscle Joints rig whose joints and volume keys were made for the other setting
+    binds again (Auto Rebind's timer; marked edited, and a message says so, when Auto Rebind is off). The anchored
+    deformer's skin does not use the muscle joints."""
     if not state.bound:
         return
-    state.dirty = True
-    if state.auto_rebind:
-        schedule_rebind(arm_obj.name)
-    else:
-        runtime.report_error(arm_obj, f"Joints Slide on '{arm_obj.name}' takes effect at the next Bind")
+    record, problem = binding.read_bind_record_or_empty(arm_obj)  # an unreadable record: bind again
+    if not problem and (record.get("deformer") == "anchored" or live.joints_slide(record) == bool(state.joints_slide)):
+        return
+    _bind_again(arm_obj, state, f"Joints Slide on '{arm_obj.name}' takes effect at the next Bind")
 
 
 CALLBACKS = {"settings_changed": on_settings_changed, "renamed": muscle_io.on_renamed,

@@ -43,8 +43,8 @@ stats = {"predicted": 0, "written": 0, "deferred": 0, "posed": 0}
 
 
 def joints_slide(record):
-    """The bind record's MuscleRig joints_slide (binding.joints_slide at Bind, following Volume Blend after it; a
-    record from before the choice was bound with sliding joints)."""
+    """The bind record's MuscleRig joints_slide (the rig's Joints Slide at Bind; a record written before the setting
+    existed was bound with sliding joints)."""
     return bool(record.get("joints_slide", True))
 
 

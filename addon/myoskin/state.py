@@ -33,7 +33,8 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
                                           which stays linear over the group myoskin_linear); a bound rig follows
                                           a switch at once; Unbind removes all of it
         .joints_slide                     Bind builds the MuscleRig with joints_slide (the bind record keeps it;
-                                          a switch on a bound rig binds again)
+                                          a switch on a bound rig binds again with Auto Rebind, else marks it
+                                          edited)
         .bind_text                        Text datablock "<armature>.bind.json", the bind record: skeleton
                                           (names, parents, heads, tails, rest), the bound muscles' json,
                                           joint names, surface object names (live update rebuilds from it)
@@ -198,7 +199,8 @@ class MyoskinRigState(bpy.types.PropertyGroup):
                     "over its belly along the limb (the paper). Off: along its bone a joint moves as the bone does; "
                     "the muscle still lifts, turns and bulges it. Off roughly halves the skin folding on itself at "
                     "mid-angle elbows of the generated bodies under the Volume Blend and raises the bulge, but "
-                    "linear and Preserve Volume skinning lose the elbow's crease. A bound rig binds again")
+                    "linear and Preserve Volume skinning lose the elbow's crease. A bound rig binds again (Auto "
+                    "Rebind; else Bind again)")
     deformer: EnumProperty(
         name="Deformer", default='JOINTS',
         items=(('JOINTS', "Muscle Joints", "The paper's Equation 3: the muscle joints are deform bones blended with "

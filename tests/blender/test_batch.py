@@ -106,6 +106,7 @@ def test_batch_volume_blend_on_by_default_and_off_on_request():
         assert (binding.VOLUME_BLEND_GROUP in skin.vertex_groups) == expected, flag
         assert binding.armature_modifier(skin, arm).use_deform_preserve_volume != expected, flag
         assert arm.myoskin.joints_slide == binding.read_bind_record(arm)["joints_slide"] == expected, flag
+        assert module("live").live_rig(arm).rig.joints_slide == expected, flag
 
 
 def cli_command():
@@ -335,6 +336,10 @@ def test_batch_errors():
     assert code == 1 and "run Extract Muscles first" in log, log
     code, log = batch("extract", "--bind", "--bake", "9-3", blend=src)
     assert code == 1 and "is empty" in log, log
+    code, log = batch("extract", "--joints-slide", "off", blend=src)  # a bind setting without --bind
+    assert code == 1 and "--joints-slide needs --bind" in log, log
+    code, log = batch("extract", "--bind", "--deformer", "anchored", "--joints-slide", "off", blend=src)
+    assert code == 1 and "--joints-slide is for the muscle joints deformer" in log, log
     unwritable = os.path.join(TMP, "no_such_folder", "out.blend")
     code, log = batch("extract", "-o", unwritable, blend=src)
     assert code == 1 and f"myoskin batch: error: cannot save {unwritable}" in log and "Traceback" not in log, log

@@ -303,6 +303,14 @@ def test_joints_slide_switched_on_a_bound_rig_binds_again_and_blender_still_equa
     runtime.clear_error(arm)
     state.joints_slide = True
     assert state.dirty and "next Bind" in runtime.last_error(arm), runtime.last_error(arm)
+    state.dirty = False
+    state.joints_slide = False  # back to what the rig was bound with: nothing to do
+    assert not state.dirty
+    # A bind record written before the setting existed (no "joints_slide") was bound with sliding joints
+    record = json_record(arm)
+    del record["joints_slide"]
+    binding.write_bind_record(arm, record)
+    assert live.live_rig(arm).rig.joints_slide
 
 
 def test_a_share_group_written_by_the_other_blender_generation_is_rewritten_on_load():

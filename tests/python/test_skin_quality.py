@@ -154,6 +154,7 @@ def test_bend_sweep_agrees_with_the_measure_and_makehumans_knee_and_shoulder_nev
         assert [r["degrees"] for r in rows] == list(range(30, 151, 15))
         row, r = rows[6], makehuman[label]  # 120 degrees, the table's angle for all three
         assert (row["crossings_lbs"], row["crossings_myoskin_vk"]) == (r["crossings_lbs"], r["crossings_myoskin_vk"])
+        assert (row["crumples_lbs"], row["crumples_myoskin_vk"]) == (r["crumples_lbs"], r["crumples_myoskin_vk"])
         assert row["lbs"] == pytest.approx(r["lbs"], abs=1e-9)
         assert row["myoskin_vk"] == pytest.approx(r["myoskin_vk"], abs=1e-9)
         at_rest = at_rest_of[label]

@@ -121,7 +121,8 @@ def test_cli_deform_volume_blend_matches_the_module(core, tmp_path):
     assert not rig_fixed.joints_slide and rig.joints_slide
     tf = core.skinning_transforms(character, pose, rig_fixed, rig_fixed.evaluate(pose)["joint_matrices"])
     keyed_fixed = skin_quality.with_volume_keys(core, character, character.vertices, fixed_keys, pose)
-    expected_fixed = core.skin(keyed_fixed, fj, fw, tf, dqs_share=share, rest_matrices=rest)
+    expected_fixed = core.skin(keyed_fixed, fj, fw, tf, dqs_share=share,
+                               rest_matrices=core.combined_rest_matrices(character, rig_fixed))
     assert np.abs(fixed[0] - character.vertices).max() < 1e-6
     assert np.abs(fixed[1] - expected_fixed).max() < 1e-5
     assert np.abs(fixed[1] - expected).max() > 1e-4
@@ -131,6 +132,12 @@ def test_cli_deform_volume_blend_matches_the_module(core, tmp_path):
     r = run_cli("deform", str(tmp_path / "arm.obj"), "--pose", str(tmp_path / "seq.json"), "-o",
                 str(tmp_path / "x.pc2"), "--joints-slide", "off")
     assert r.returncode == 1 and "--joints-slide needs --muscles" in r.stderr, r.stderr
+    r = run_cli("simulate", str(tmp_path / "arm.obj"), "--pose", str(tmp_path / "seq.json"), "-o",
+                str(tmp_path / "x.pc2"), "--joints-slide", "off")
+    assert r.returncode == 1 and "--joints-slide needs --muscles" in r.stderr, r.stderr
+    r = run_cli("deform", str(tmp_path / "arm.obj"), "--muscles", str(tmp_path / "m.json"), "--pose",
+                str(tmp_path / "seq.json"), "-o", str(tmp_path / "x.pc2"), "--method", "anchored", "--joints-slide", "off")
+    assert r.returncode == 1 and "--joints-slide is for --method eq3" in r.stderr, r.stderr
     r = run_cli("deform", str(tmp_path / "arm.obj"), "--pose", str(tmp_path / "seq.json"), "-o",
                 str(tmp_path / "out.pc2"), "--volume-blend", "--preserve-volume")
     assert r.returncode == 1 and "exclude each other" in r.stderr, r.stderr

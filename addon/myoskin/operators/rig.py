@@ -33,7 +33,8 @@ class MYOSKIN_OT_bind(_MuscleOperator, bpy.types.Operator):
             except Exception:
                 skeleton = None
             if skeleton is not None:
-                core.MuscleRig(skeleton, muscles)  # the rig's own checks (ends, wraps, joints)
+                # the rig's own checks (ends, wraps, joints)
+                core.MuscleRig(skeleton, muscles, joints_slide=bool(state.joints_slide))
             for skin in binding.bound_skins(arm):
                 binding.check_backup(skin)
             if state.deformer == 'ANCHORED':

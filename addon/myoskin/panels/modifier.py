@@ -47,7 +47,7 @@ class MYOSKIN_PT_skin_muscles(bpy.types.Panel):
         if state.bound:
             layout.prop(state, "live")
             if state.dirty:
-                layout.label(text="Muscles edited since the bind: Bind again", icon='ERROR')
+                layout.label(text="Edited since the bind: Bind again", icon='ERROR')
 
 
 classes = (MYOSKIN_PT_skin_muscles,)

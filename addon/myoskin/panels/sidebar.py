@@ -223,14 +223,16 @@ class MYOSKIN_PT_bind(_WorkflowStep, bpy.types.Panel):
         row = layout.row()
         row.active = not state.volume_blend
         row.prop(state, "preserve_volume")
-        layout.prop(state, "joints_slide")
+        row = layout.row()
+        row.active = state.deformer != 'ANCHORED'  # the anchored skin does not use the muscle joints
+        row.prop(state, "joints_slide")
         if state.bound:
             skins = rig_skins(arm)
             layout.label(text=f"Bound to {', '.join(o.name for o in skins) if skins else '?'}", icon='CHECKMARK')
             layout.prop(state, "live")
             layout.prop(state, "auto_rebind")
             if state.dirty:
-                layout.label(text="Muscles edited since the bind: Bind again", icon='ERROR')
+                layout.label(text="Edited since the bind: Bind again", icon='ERROR')
         else:
             layout.label(text="Not bound", icon='INFO')
 

@@ -48,8 +48,7 @@ struct MuscleRigOptions {
   // that do not slide"): false nearly halves the skin's crumples over the bend sweep under the volume blend and
   // raises the biceps' bulge, but the sliding skin is what keeps the elbow's crease in linear and Preserve Volume
   // skinning (makehuman_muscular_male's elbow at 120 degrees with Preserve Volume: -20.3 % with true, -34.0 % with
-  // false, LBS -45.5 %). So a rig skinned with the volume blend is built with false (the add-on's Bind, the CLI's
-  // --volume-blend), one skinned linearly or with Preserve Volume with true.
+  // false, LBS -45.5 %). The add-on's Joints Slide setting and the CLI's --joints-slide choose it.
   bool jointsSlide = true;
 };
 
