@@ -94,8 +94,8 @@ def parse_args(argv):
                         "keep their volume; default: the rig's setting, on)")
     p.add_argument("--joints-slide", choices=("on", "off"), default=None,
                    help="with --bind: muscle joints ride their action paths along the limb (on, the paper; default: "
-                        "the rig's setting, on) or move along their bones as the bones do (off: less skin folding "
-                        "on itself under the volume blend, less crease in linear and Preserve Volume skinning)")
+                        "the rig's setting, on) or move along their bones as the bones do (off: on some bodies less "
+                        "skin folding on itself under the volume blend; less crease in linear and Preserve Volume)")
     p.add_argument("--max-influences", type=int, default=0, metavar="N",
                    help="bones and muscle joints per vertex after --bind (default: the rig's setting, 8; 4 for game engines)")
     p.add_argument("--bake", metavar="A-B", help="bake the muscle joints to keyframes over frames A-B")

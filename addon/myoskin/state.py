@@ -197,10 +197,9 @@ class MyoskinRigState(bpy.types.PropertyGroup):
         name="Joints Slide", default=True, update=_joints_slide_changed,
         description="Muscle joints ride their stations of the action path, so a shortening muscle carries the skin "
                     "over its belly along the limb (the paper). Off: along its bone a joint moves as the bone does; "
-                    "the muscle still lifts, turns and bulges it. Off roughly halves the skin folding on itself at "
-                    "mid-angle elbows of the generated bodies under the Volume Blend and raises the bulge, but "
-                    "linear and Preserve Volume skinning lose the elbow's crease. A bound rig binds again (Auto "
-                    "Rebind; else Bind again)")
+                    "the muscle still lifts, turns and bulges it. On some bodies off folds the skin on itself less "
+                    "at mid-angle elbows under the Volume Blend, but linear and Preserve Volume skinning lose the "
+                    "elbow's crease. A bound rig binds again (Auto Rebind; else Bind again)")
     deformer: EnumProperty(
         name="Deformer", default='JOINTS',
         items=(('JOINTS', "Muscle Joints", "The paper's Equation 3: the muscle joints are deform bones blended with "
