@@ -69,6 +69,16 @@ for name, row in anchored_rows:
           f"{100 * row['anchored']:+8.1f}% {1000 * row['bulge_anchored']:9.1f} mm ({row['bulge_anchored'] / row['limb_radius']:+.3f} r) "
           f"{row['crossings_lbs']:>14d}/{row['crossings_myoskin_pv']}/{row['crossings_anchored']} "
           f"{row['ms_anchored']:11.2f} {row['ms_eq3']:8.2f} {row['ms_anchored'] / row['ms_eq3']:6.2f}")
+
+
+def total(sweep, key):
+    return sum(r[key] for joint in sweep for r in joint["rows"])
+
+
+def over_lbs(sweep):
+    return sum(r["crossings_myoskin_vk"] > r["crossings_lbs"] for joint in sweep for r in joint["rows"])
+
+
 print()
 print("Bend sweep (30-150 degrees by 15, ankles 15-60): crossing band triangle pairs, LBS / Myoskin (VB+keys, what Bind gives), "
       "in brackets the crumples among them (new pairs whose triangles' centroids lie within "
@@ -79,16 +89,8 @@ for name, sweep, _fixed in sweeps:
         cells = " ".join(f"{r['degrees']}:{r['crossings_lbs']}({r['crumples_lbs']})/{r['crossings_myoskin_vk']}"
                          f"({r['crumples_myoskin_vk']}){'!' if r['crossings_myoskin_vk'] > r['crossings_lbs'] else ''} "
                          f"{100 * r['myoskin_vk']:+.0f}%" for r in joint["rows"])
-        worse = sum(r["crossings_myoskin_vk"] > r["crossings_lbs"] for r in joint["rows"])
+        worse = over_lbs([joint])
         print(f"{name[:24]:24s} {joint['label']:20s} folds more than LBS at {worse} of {len(joint['rows'])}: {cells}")
-
-
-def total(sweep, key):
-    return sum(r[key] for joint in sweep for r in joint["rows"])
-
-
-def over_lbs(sweep):
-    return sum(r["crossings_myoskin_vk"] > r["crossings_lbs"] for joint in sweep for r in joint["rows"])
 
 
 print()

@@ -45,7 +45,7 @@ struct MuscleRigOptions {
   // towards its origin) or the bone (false: the component of the joint's motion along its bone's axis is that bone's;
   // the path still sets its offset across the bone, its frame and its scale; the surface's stations move the same
   // way). The bone is the one of the origin-to-insertion chain nearest to the joint at rest. Measured (README "Joints
-  // that do not slide"): false nearly halves the skin's crumples over the bend sweep under the volume blend and
+  // that do not slide"): false nearly halves the tune bipeds' crumples over the bend sweep under the volume blend and
   // raises the biceps' bulge, but the sliding skin is what keeps the elbow's crease in linear and Preserve Volume
   // skinning (makehuman_muscular_male's elbow at 120 degrees with Preserve Volume: -20.3 % with true, -34.0 % with
   // false, LBS -45.5 %). The add-on's Joints Slide setting and the CLI's --joints-slide choose it.
