@@ -243,8 +243,14 @@ class SelfIntersectionTest {
   SelfIntersectionTest(const SelfIntersectionTest&) = delete;
   SelfIntersectionTest& operator=(const SelfIntersectionTest&) = delete;
   std::vector<std::pair<int, int>> pairs(const Points& vertices);
+  // Only the pairs with at least one triangle in `focus` (#F flags over the constructor's rows; they must be masked
+  // in): pairs() restricted to them, without testing the other triangles against each other. Where only the focus
+  // triangles move between two calls, the pairs among the others are the same in both, so the counts compare as
+  // pairs()'s would. Throws as pairs(), and InputError on a focus of the wrong size.
+  std::vector<std::pair<int, int>> pairs(const Points& vertices, const std::vector<char>& focus);
 
  private:
+  void movePoints(const Points& vertices);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -5,6 +5,7 @@
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
+#include <CGAL/box_intersection_d.h>
 
 #include <algorithm>
 #include <array>
@@ -30,6 +31,7 @@ struct SelfIntersectionTest::Impl {
   std::vector<int> source;  // mesh vertex -> row of the vertices (the soup's split vertices share their row)
   std::vector<int> faceOf;  // mesh face -> row of the triangles
   Eigen::Index numVertices = 0;
+  Eigen::Index numTriangles = 0;
 };
 
 SelfIntersectionTest::SelfIntersectionTest(const Triangles& triangles, Eigen::Index numVertices,
@@ -38,6 +40,7 @@ SelfIntersectionTest::SelfIntersectionTest(const Triangles& triangles, Eigen::In
   const Eigen::Index nf = triangles.rows(), nv = numVertices;
   if (nv < 0) throw InputError("self intersections: " + std::to_string(nv) + " vertices");
   impl_->numVertices = nv;
+  impl_->numTriangles = nf;
   if (!faceMask.empty() && static_cast<Eigen::Index>(faceMask.size()) != nf)
     throw InputError("self intersections: the face mask has " + std::to_string(faceMask.size()) + " entries for " +
                      std::to_string(nf) + " triangles");
@@ -77,27 +80,90 @@ SelfIntersectionTest::SelfIntersectionTest(const Triangles& triangles, Eigen::In
 
 SelfIntersectionTest::~SelfIntersectionTest() = default;
 
-std::vector<std::pair<int, int>> SelfIntersectionTest::pairs(const Points& vertices) {
-  if (vertices.rows() != impl_->numVertices)
-    throw InputError("self intersections: " + std::to_string(vertices.rows()) + " vertices for a test made for " +
-                     std::to_string(impl_->numVertices));
-  if (!vertices.allFinite()) throw InputError("self intersections: the vertices are not all finite");
+namespace {
+
+using FacePair = std::pair<SurfaceMesh::Face_index, SurfaceMesh::Face_index>;
+
+// The mesh's face pairs as rows of the triangles, (smaller, larger), sorted.
+std::vector<std::pair<int, int>> asRows(const std::vector<FacePair>& found, const std::vector<int>& faceOf) {
   std::vector<std::pair<int, int>> out;
-  SurfaceMesh& mesh = impl_->mesh;
-  if (mesh.number_of_faces() == 0) return out;
-  for (const SurfaceMesh::Vertex_index v : mesh.vertices()) {
-    const int r = impl_->source[v.idx()];
-    mesh.point(v) = Kernel::Point_3(vertices(r, 0), vertices(r, 1), vertices(r, 2));
-  }
-  std::vector<std::pair<SurfaceMesh::Face_index, SurfaceMesh::Face_index>> found;
-  PMP::self_intersections(mesh, std::back_inserter(found));
   out.reserve(found.size());
   for (const auto& [a, b] : found) {  // the mesh's faces are the soup's, in order
-    const int fa = impl_->faceOf[static_cast<size_t>(a.idx())], fb = impl_->faceOf[static_cast<size_t>(b.idx())];
+    const int fa = faceOf[static_cast<size_t>(a.idx())], fb = faceOf[static_cast<size_t>(b.idx())];
     out.emplace_back(std::min(fa, fb), std::max(fa, fb));
   }
   std::sort(out.begin(), out.end());
   return out;
+}
+
+}  // namespace
+
+void SelfIntersectionTest::movePoints(const Points& vertices) {
+  if (vertices.rows() != impl_->numVertices)
+    throw InputError("self intersections: " + std::to_string(vertices.rows()) + " vertices for a test made for " +
+                     std::to_string(impl_->numVertices));
+  if (!vertices.allFinite()) throw InputError("self intersections: the vertices are not all finite");
+  SurfaceMesh& mesh = impl_->mesh;
+  for (const SurfaceMesh::Vertex_index v : mesh.vertices()) {
+    const int r = impl_->source[v.idx()];
+    mesh.point(v) = Kernel::Point_3(vertices(r, 0), vertices(r, 1), vertices(r, 2));
+  }
+}
+
+std::vector<std::pair<int, int>> SelfIntersectionTest::pairs(const Points& vertices) {
+  movePoints(vertices);
+  SurfaceMesh& mesh = impl_->mesh;
+  if (mesh.number_of_faces() == 0) return {};
+  std::vector<FacePair> found;
+  PMP::self_intersections(mesh, std::back_inserter(found));
+  return asRows(found, impl_->faceOf);
+}
+
+std::vector<std::pair<int, int>> SelfIntersectionTest::pairs(const Points& vertices, const std::vector<char>& focus) {
+  if (static_cast<Eigen::Index>(focus.size()) != impl_->numTriangles)
+    throw InputError("self intersections: the focus has " + std::to_string(focus.size()) + " entries for " +
+                     std::to_string(impl_->numTriangles) + " triangles");
+  movePoints(vertices);
+  const SurfaceMesh& mesh = impl_->mesh;
+  std::vector<FacePair> found;
+  // PMP::self_intersections' test (a box per face, CGAL's strict face test: neighbours sharing a vertex or an edge
+  // intersect only past it; a collinear face is a pair with itself), with the focus faces' boxes intersected among
+  // themselves and with the others' (those outside the focus boxes' bounds cannot meet them).
+  using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, SurfaceMesh::Face_index,
+                                                         CGAL::Box_intersection_d::ID_FROM_BOX_ADDRESS>;
+  std::vector<Box> focusBoxes, otherBoxes;
+  CGAL::Bbox_3 bounds;
+  for (const SurfaceMesh::Face_index f : mesh.faces()) {
+    const auto h = mesh.halfedge(f);
+    const Kernel::Point_3 &p = mesh.point(mesh.target(h)), &q = mesh.point(mesh.target(mesh.next(h))),
+                          &r = mesh.point(mesh.target(mesh.prev(h)));
+    const bool inFocus = focus[static_cast<size_t>(impl_->faceOf[f.idx()])] != 0;
+    if (inFocus && CGAL::collinear(p, q, r)) {
+      found.emplace_back(f, f);
+      continue;
+    }
+    if (!inFocus && CGAL::collinear(p, q, r)) continue;
+    const CGAL::Bbox_3 box = p.bbox() + q.bbox() + r.bbox();
+    if (inFocus) {
+      focusBoxes.emplace_back(box, f);
+      bounds += box;
+    } else {
+      otherBoxes.emplace_back(box, f);
+    }
+  }
+  std::vector<const Box*> focusPtr, otherPtr;
+  for (const Box& b : focusBoxes) focusPtr.push_back(&b);
+  for (const Box& b : otherBoxes)
+    if (CGAL::do_overlap(b.bbox(), bounds)) otherPtr.push_back(&b);
+  const PMP::internal::Strict_intersect_faces<Box, SurfaceMesh, SurfaceMesh::Property_map<SurfaceMesh::Vertex_index,
+                                                                                         Kernel::Point_3>,
+                                              Kernel, std::back_insert_iterator<std::vector<FacePair>>>
+      test(mesh, mesh.points(), Kernel(), std::back_inserter(found));
+  constexpr std::ptrdiff_t kCutoff = 2000;  // PMP::self_intersections' box-intersection cutoff
+  CGAL::box_self_intersection_d<CGAL::Sequential_tag>(focusPtr.begin(), focusPtr.end(), test, kCutoff);
+  CGAL::box_intersection_d<CGAL::Sequential_tag>(focusPtr.begin(), focusPtr.end(), otherPtr.begin(), otherPtr.end(),
+                                                 test, kCutoff);
+  return asRows(found, impl_->faceOf);
 }
 
 std::vector<std::pair<int, int>> selfIntersectingPairs(const Points& vertices, const Triangles& triangles,

@@ -450,13 +450,14 @@ struct BendCache {
   struct Bend {
     VertexTransforms maps;  // per band vertex the skin's affine map at this bend
     bool counted = false;
-    std::vector<std::pair<int, int>> folds;  // self-intersecting band triangle pairs under the blend alone (sorted)
+    std::vector<std::pair<int, int>> folds;  // under the blend alone, the self-intersecting pairs with a movable triangle
     // The band positions last tested at this bend and their pairs, newest first: the fits of one axis test the same
     // positions again (a sample's last contact round, then its fold check; both contact modes' first rounds).
     std::deque<std::pair<Points, std::vector<std::pair<int, int>>>> tested;
   };
   std::map<double, Bend> bends;
   std::unique_ptr<SelfIntersectionTest> crossings;  // the band's self-intersection test, made once
+  std::vector<char> movable;  // per band triangle: whether a key can move it (crossings counts pairs with one)
 };
 
 // Bind's skin, when the keys are fitted on it: the muscle rig's joints with their hybrid weights (#V rows over the
@@ -517,7 +518,8 @@ double sideFactor(KeySide keySide, double c) {
 // offsets' profile and, per sample flexion, the amplitude that keeps the band's volume; then the weight's fit. False
 // when the band keeps its volume at every sample (no key). `holdAll`: every contact under the push is held, else only
 // the contacts the push makes (the blend's own folds may be pushed apart). `folds`: the band's self-intersecting
-// triangle pairs with the key, summed over the samples; `held`: whether any skin was held.
+// triangle pairs with the key that have a movable triangle (the fits of one axis share the others), summed over the
+// samples; `held`: whether any skin was held.
 bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<double>& bandBlend,
                   const Points& normals, const Eigen::VectorXd& share, const VolumeBlendOptions& o,
                   const VolumeKeyOptions& ko, const RealJoint& joint, const Vec3& axis, bool directional,
@@ -575,8 +577,19 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
     }
     return bend;
   };
-  if (!cache.crossings) cache.crossings = std::make_unique<SelfIntersectionTest>(band.triangles, band.rest.rows());
-  auto pairsOf = [&](const Points& p) { return cache.crossings->pairs(p); };
+  if (!cache.crossings) {
+    cache.crossings = std::make_unique<SelfIntersectionTest>(band.triangles, band.rest.rows());
+    // The triangles a key can move (a vertex with blend and taper, whatever the side and direction): every position
+    // set tested at a bend differs from the bend's own only there, so only pairs with one of them are counted.
+    cache.movable.assign(static_cast<size_t>(band.triangles.rows()), 0);
+    for (Eigen::Index t = 0; t < band.triangles.rows(); ++t)
+      for (int c = 0; c < 3; ++c) {
+        const int i = band.triangles(t, c);
+        if (bandBlend[static_cast<size_t>(i)] > 0.0 && (band.rest.row(i).transpose() - head).norm() < reach)
+          cache.movable[static_cast<size_t>(t)] = 1;
+      }
+  }
+  auto pairsOf = [&](const Points& p) { return cache.crossings->pairs(p, cache.movable); };
   auto foldPairs = [&](BendCache::Bend& bend, const Points& base) -> const std::vector<std::pair<int, int>>& {
     if (!bend.counted) bend.folds = pairsOf(base), bend.counted = true;
     return bend.folds;  // under the blend alone, found once
@@ -753,10 +766,10 @@ bool fitVolumeKey(const Skeleton& skeleton, const Band& band, const std::vector<
   }
   folds = 0;
   for (double degrees : key.sampleDegrees) {
-    bent(degrees, base, moved);
+    BendCache::Bend& bend = bent(degrees, base, moved);
     const Points with = base + weightAt(degrees) * peak * moved;
     key.changeWith.push_back(change(with));
-    folds += static_cast<int>(pairsOf(with).size());
+    folds += static_cast<int>(pairsAt(bend, with).size());
   }
   return true;
 }
