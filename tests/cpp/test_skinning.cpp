@@ -289,9 +289,52 @@ TEST(SkinQuality, SelfIntersectionsCountCrossingPairsNotNeighbours) {
     if (folded(i, 0) > 0.5) folded(i, 0) = 1.0 - folded(i, 0);  // mirror the far part back over x = 0.5
   EXPECT_GT(selfIntersections(folded, c.mesh.triangles), 0);
   EXPECT_NE(test::inputErrorOf([&] { selfIntersections(v, t, {1, 0}); }).find("2 entries"), std::string::npos);
+  EXPECT_NE(test::inputErrorOf([&] { test.pairs(v, {1, 0}); }).find("2 entries"), std::string::npos);
   Points bad = v;
   bad(3, 1) = std::nan("");
   EXPECT_NE(test::inputErrorOf([&] { selfIntersections(bad, t); }).find("finite"), std::string::npos);
+}
+
+TEST(SkinQuality, SelfIntersectionsWithAFocusAreThePairsThatHaveAFocusTriangle) {
+  // Independent answer: the whole test's pairs, kept where one triangle is in the focus. On the synthetic arm folded
+  // back over itself (thousands of crossings), with foci of several sizes: a slab across the fold, every third
+  // triangle, one triangle, none; a stretched sliver spanning the arm and a collinear triangle are in the focus too.
+  const Character c = makeSyntheticArm().character;
+  Points folded = c.mesh.vertices;
+  for (int i = 0; i < folded.rows(); ++i)
+    if (folded(i, 0) > 0.5) folded(i, 0) = 1.0 - folded(i, 0);
+  const Triangles& t = c.mesh.triangles;
+  const Eigen::Index nf = t.rows();
+  Points stretched = folded;
+  stretched.row(t(7, 0)) = folded.row(t(nf / 2, 0));  // triangle 7 now reaches across the arm's length
+  const Eigen::Index flat = nf / 3;  // a triangle with two corners at one point: a pair with itself
+  stretched.row(t(flat, 2)) = stretched.row(t(flat, 0));
+  SelfIntersectionTest test(t, folded.rows());
+  size_t checkedPairs = 0;
+  for (const Points* p : {&folded, &stretched}) {
+    const std::vector<std::pair<int, int>> all = test.pairs(*p);
+    ASSERT_GT(all.size(), 100u);
+    if (p == &stretched) {  // the sliver crosses the skin and the collinear triangle is a pair with itself
+      EXPECT_GT(std::count_if(all.begin(), all.end(), [](const auto& pr) { return pr.first == 7 || pr.second == 7; }), 2);
+      EXPECT_TRUE(std::binary_search(all.begin(), all.end(), std::make_pair(int(flat), int(flat))));
+    }
+    std::vector<std::vector<char>> foci(4, std::vector<char>(static_cast<size_t>(nf), 0));
+    for (Eigen::Index f = 0; f < nf; ++f) {
+      const double x = (*p)(t(f, 0), 0);
+      foci[0][static_cast<size_t>(f)] = x > 0.35 && x < 0.45;
+      foci[1][static_cast<size_t>(f)] = f % 3 == 0;
+    }
+    foci[2][7] = 1;
+    foci[0][7] = foci[0][static_cast<size_t>(flat)] = 1;
+    for (const std::vector<char>& focus : foci) {
+      std::vector<std::pair<int, int>> expected;
+      for (const auto& pr : all)
+        if (focus[static_cast<size_t>(pr.first)] || focus[static_cast<size_t>(pr.second)]) expected.push_back(pr);
+      EXPECT_EQ(test.pairs(*p, focus), expected);
+      checkedPairs += expected.size();
+    }
+  }
+  EXPECT_GT(checkedPairs, 1000u);
 }
 
 // ============================================================================

@@ -5,10 +5,12 @@
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 #include <CGAL/Polygon_mesh_processing/self_intersections.h>
 #include <CGAL/Surface_mesh.h>
-#include <CGAL/box_intersection_d.h>
+#include <CGAL/Box_intersection_d/Box_with_info_d.h>
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdint>
 #include <iterator>
 #include <memory>
 #include <vector>
@@ -96,6 +98,92 @@ std::vector<std::pair<int, int>> asRows(const std::vector<FacePair>& found, cons
   return out;
 }
 
+// Calls visit(a, b) once for every pair of boxes that overlap (closed: touching counts, as CGAL's box intersection)
+// with a in `focus` and b in `focus` (a before b) or in `others`. A uniform grid of cells twice the focus boxes' mean
+// extent: each box is listed in the cells it overlaps (one spanning more than kMaxCellsAcross in a direction is tested
+// against every box), and a pair is visited in the one cell holding the largest of its lower corners.
+template <class Box, class Visit>
+void forOverlappingBoxes(const std::vector<Box>& focus, const std::vector<Box>& others, const CGAL::Bbox_3& bounds,
+                         Visit&& visit) {
+  if (focus.empty()) return;
+  constexpr int kMaxCellsAcross = 4;
+  constexpr double kCellsPerAxisMax = 1 << 20;  // cell coordinates fit in 21 bits
+  double meanExtent = 0.0;
+  for (const Box& b : focus)
+    meanExtent += std::max({b.max_coord(0) - b.min_coord(0), b.max_coord(1) - b.min_coord(1),
+                            b.max_coord(2) - b.min_coord(2)});
+  meanExtent /= static_cast<double>(focus.size());
+  double cell = 2.0 * meanExtent;
+  for (int d = 0; d < 3; ++d) cell = std::max(cell, (bounds.max(d) - bounds.min(d)) / (kCellsPerAxisMax - 2.0));
+  if (!(cell > 0.0)) cell = 1.0;  // every focus box a point at one place: one cell
+  auto overlap = [](const Box& a, const Box& b) {
+    for (int d = 0; d < 3; ++d)
+      if (a.min_coord(d) > b.max_coord(d) || b.min_coord(d) > a.max_coord(d)) return false;
+    return true;
+  };
+  auto cellOf = [&](double x, int d) {  // clamped to the focus bounds' cells (every overlap lies inside them)
+    const double c = std::floor((std::clamp(x, bounds.min(d), bounds.max(d)) - bounds.min(d)) / cell);
+    return static_cast<uint64_t>(std::clamp(c, 0.0, kCellsPerAxisMax - 1.0));
+  };
+  auto key = [](uint64_t i, uint64_t j, uint64_t k) { return (i << 42) | (j << 21) | k; };
+  // (cell key, box): focus boxes numbered 0..F-1, the others F.. ; big boxes aside.
+  const size_t nf = focus.size();
+  auto boxAt = [&](size_t i) -> const Box& { return i < nf ? focus[i] : others[i - nf]; };
+  std::vector<std::pair<uint64_t, uint32_t>> entries;
+  std::vector<size_t> big;
+  entries.reserve(4 * (nf + others.size()));
+  for (size_t i = 0; i < nf + others.size(); ++i) {
+    const Box& b = boxAt(i);
+    if (i >= nf && !CGAL::do_overlap(b.bbox(), bounds)) continue;
+    uint64_t lo[3], hi[3];
+    bool isBig = false;
+    for (int d = 0; d < 3; ++d) {
+      lo[d] = cellOf(b.min_coord(d), d);
+      hi[d] = cellOf(b.max_coord(d), d);
+      isBig = isBig || hi[d] - lo[d] >= static_cast<uint64_t>(kMaxCellsAcross);
+    }
+    if (isBig) {
+      big.push_back(i);
+      continue;
+    }
+    for (uint64_t x = lo[0]; x <= hi[0]; ++x)
+      for (uint64_t y = lo[1]; y <= hi[1]; ++y)
+        for (uint64_t z = lo[2]; z <= hi[2]; ++z) entries.emplace_back(key(x, y, z), static_cast<uint32_t>(i));
+  }
+  std::sort(entries.begin(), entries.end());
+  auto visitPair = [&](size_t i, size_t j) {  // i < j in numbering; at least one in the focus
+    const Box &a = boxAt(i), &b = boxAt(j);
+    if (overlap(a, b)) visit(a, b);
+  };
+  for (size_t first = 0; first < entries.size();) {
+    size_t last = first;
+    while (last < entries.size() && entries[last].first == entries[first].first) ++last;
+    const uint64_t here = entries[first].first;
+    for (size_t p = first; p < last; ++p) {
+      const size_t i = entries[p].second;
+      if (i >= nf) break;  // sorted: the focus boxes come first in a cell
+      for (size_t q = p + 1; q < last; ++q) {
+        const size_t j = entries[q].second;
+        const Box &a = boxAt(i), &b = boxAt(j);
+        if (!overlap(a, b)) continue;
+        if (key(cellOf(std::max(a.min_coord(0), b.min_coord(0)), 0), cellOf(std::max(a.min_coord(1), b.min_coord(1)), 1),
+                cellOf(std::max(a.min_coord(2), b.min_coord(2)), 2)) == here)
+          visit(a, b);
+      }
+    }
+    first = last;
+  }
+  // Big boxes against every box (each pair once: a big box meets the small ones, and the big ones after it).
+  std::vector<char> isBig(nf + others.size(), 0);
+  for (size_t i : big) isBig[i] = 1;
+  for (size_t i : big)
+    for (size_t j = 0; j < nf + others.size(); ++j) {
+      if (j == i || (isBig[j] && j < i) || (i >= nf && j >= nf)) continue;
+      if (j >= nf && !CGAL::do_overlap(boxAt(j).bbox(), bounds)) continue;
+      visitPair(std::min(i, j), std::max(i, j));
+    }
+}
+
 }  // namespace
 
 void SelfIntersectionTest::movePoints(const Points& vertices) {
@@ -151,18 +239,11 @@ std::vector<std::pair<int, int>> SelfIntersectionTest::pairs(const Points& verti
       otherBoxes.emplace_back(box, f);
     }
   }
-  std::vector<const Box*> focusPtr, otherPtr;
-  for (const Box& b : focusBoxes) focusPtr.push_back(&b);
-  for (const Box& b : otherBoxes)
-    if (CGAL::do_overlap(b.bbox(), bounds)) otherPtr.push_back(&b);
   const PMP::internal::Strict_intersect_faces<Box, SurfaceMesh, SurfaceMesh::Property_map<SurfaceMesh::Vertex_index,
                                                                                          Kernel::Point_3>,
                                               Kernel, std::back_insert_iterator<std::vector<FacePair>>>
       test(mesh, mesh.points(), Kernel(), std::back_inserter(found));
-  constexpr std::ptrdiff_t kCutoff = 2000;  // PMP::self_intersections' box-intersection cutoff
-  CGAL::box_self_intersection_d<CGAL::Sequential_tag>(focusPtr.begin(), focusPtr.end(), test, kCutoff);
-  CGAL::box_intersection_d<CGAL::Sequential_tag>(focusPtr.begin(), focusPtr.end(), otherPtr.begin(), otherPtr.end(),
-                                                 test, kCutoff);
+  forOverlappingBoxes(focusBoxes, otherBoxes, bounds, [&](const Box& a, const Box& b) { test(&a, &b); });
   return asRows(found, impl_->faceOf);
 }
 
