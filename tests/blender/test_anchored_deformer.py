@@ -28,7 +28,7 @@ TMP = tempfile.mkdtemp(prefix="myoskin_test_anchored_")
 def anchored_arm():
     """The synthetic arm, extracted and bound with the anchored deformer; (arm, skin, original weights)."""
     bpy.ops.wm.read_homefile(use_empty=True)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     arm = skin.parent
     assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
@@ -126,7 +126,7 @@ def test_pc2_bake_equals_blender():
 
 def test_stuffing_empty_is_anchored_to_and_blender_equals_the_core():
     bpy.ops.wm.read_homefile(use_empty=True)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     arm = skin.parent
     assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}

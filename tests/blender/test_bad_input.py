@@ -161,7 +161,7 @@ def new_scene():
 def synthetic_arm():
     """The procedural arm through its operator: (armature, skin)."""
     new_scene()
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     return skin.parent, skin
 

@@ -35,7 +35,7 @@ def batch(*args, blend=None):
 
 def arm_blend(path):
     bpy.ops.wm.read_homefile(use_empty=True)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     pb = skin.parent.pose.bones["forearm"]
     pb.rotation_mode = 'XYZ'
@@ -324,8 +324,8 @@ def test_batch_errors():
     assert code == 1 and "0 skinned meshes" in log, log
     two = os.path.join(TMP, "two.blend")  # two characters: say which
     bpy.ops.wm.read_homefile(use_empty=True)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=2) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, **runner.LIGHT_ARM) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=2, **runner.LIGHT_ARM) == {'FINISHED'}
     bpy.ops.wm.save_as_mainfile(filepath=two)
     code, log = batch("extract", "-o", os.path.join(TMP, "two_out.blend"), blend=two)
     assert code == 1 and "2 armatures deform meshes" in log and "pick one with --object" in log, log

@@ -30,7 +30,7 @@ TMP = tempfile.mkdtemp(prefix="myoskin_test_bind_")
 def bound_arm(seed=1):
     """The synthetic arm, extracted and bound; returns (arm, skin, state, original weights)."""
     bpy.ops.wm.read_homefile(use_empty=True)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=seed) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=seed, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     arm = skin.parent
     assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
@@ -353,7 +353,7 @@ def test_locator_move_on_a_bound_rig_binds_again_when_still():
 
 def test_two_bound_characters_in_one_scene():
     arm1, skin1, state1, _ = bound_arm(seed=1)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=2) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=2, **runner.LIGHT_ARM) == {'FINISHED'}
     skin2 = bpy.context.view_layer.objects.active
     arm2 = skin2.parent
     arm2.location = (1.0, 0.0, 0.0)
@@ -693,7 +693,7 @@ def test_bind_bad_input():
     bpy.ops.wm.read_homefile(use_empty=True)
     bpy.context.view_layer.objects.active = None
     assert "No active object" in operator_error(bpy.ops.myoskin.bind)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     assert "run Extract Muscles first" in operator_error(bpy.ops.myoskin.bind)
     assert "is not bound" in operator_error(bpy.ops.myoskin.unbind)
@@ -760,7 +760,7 @@ def test_undo_after_bind_loses_no_weights():
     the same memfile restore is done by reverting to the state saved right before the bind; the live
     handler's cache (keyed by armature name) must not apply the stale rig."""
     bpy.ops.wm.read_homefile(use_empty=True)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     names = (skin.parent.name, skin.name)
     assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}

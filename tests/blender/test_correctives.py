@@ -36,7 +36,7 @@ def new_arm(bound=False, volume_blend=False):
     """The synthetic arm (plain skeleton weights, linear) or bound with Preserve Volume (and the volume blend);
     (arm, skin)."""
     bpy.ops.wm.read_homefile(use_empty=True)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     arm = skin.parent
     if bound:

@@ -24,7 +24,7 @@ STOP, END = 8, 40
 def animated_arm():
     """The synthetic arm, extracted, bound, its elbow flexing 0 -> 100 degrees over frames 1-8 and then held."""
     bpy.ops.wm.read_homefile(use_empty=True)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     arm = skin.parent
     assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}

@@ -35,7 +35,7 @@ def armature_modifier(skin, arm):
 def bound_arm(preserve_volume=True, seed=1, volume_blend=False):
     """The synthetic arm, extracted, Preserve Volume (and the volume blend) set, bound; returns (arm, skin, state)."""
     bpy.ops.wm.read_homefile(use_empty=True)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=seed) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=seed, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     arm = skin.parent
     assert bpy.ops.myoskin.extract_muscles() == {'FINISHED'}
@@ -129,7 +129,7 @@ def test_bind_sets_preserve_volume_and_blender_equals_the_core():
 
 def test_the_setting_follows_on_a_bound_rig_and_unbind_restores_the_modifier():
     bpy.ops.wm.read_homefile(use_empty=True)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     arm = skin.parent
     mod = armature_modifier(skin, arm)  # the character's own modifier, kept by Bind
@@ -345,7 +345,7 @@ def json_record(arm):
 
 def test_volume_blend_unbind_restores_the_character_exactly_and_pc2_equals_blender():
     bpy.ops.wm.read_homefile(use_empty=True)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=2) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=2, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     arm = skin.parent
     before = character_snapshot(skin)
@@ -391,7 +391,7 @@ def test_a_rig_bound_before_the_default_changed_keeps_its_linear_mode_on_load():
     assert not arm.myoskin.preserve_volume and not armature_modifier(skin, arm).use_deform_preserve_volume
     # a new rig takes the new default
     bpy.ops.wm.read_homefile(use_empty=True)
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, **runner.LIGHT_ARM) == {'FINISHED'}
     assert bpy.context.view_layer.objects.active.parent.myoskin.preserve_volume
 
 

@@ -77,7 +77,7 @@ def test_cycles_render_equals_viewport_deformation():
     coordinates, and differs from one at the plain-skeleton (LBS) coordinates: the render has the muscles."""
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
-    assert bpy.ops.myoskin.add_synthetic_arm(seed=1) == {'FINISHED'}
+    assert bpy.ops.myoskin.add_synthetic_arm(seed=1, **runner.LIGHT_ARM) == {'FINISHED'}
     skin = bpy.context.view_layer.objects.active
     arm = skin.parent
     plain = skin.copy()  # the same skin with the skeleton's weights only

@@ -231,6 +231,40 @@ TEST(Paths, JointWrapIsContinuousThroughAStraightLimb) {
   }
 }
 
+TEST(Paths, JointWrapOfAMuscleBesideTheJointDoesNotFlipWithRounding) {
+  // A muscle beside a hinge (its side along the hinge's axis, Z), the limb bent by 110 degrees in the XY plane: the
+  // side names neither way round, and rounding in the side (float32 bone matrices) must not pick one. Before, a side
+  // off the axis by 1e-9 went round the outside or the crease with the sign of that 1e-9 (2 cm apart on the synthetic
+  // arm's elbow); the path is the short way for every such side, and the same within 1e-9 of the bend's move.
+  const Vec3 O(-0.3, 0.02, 0.0), J(0.0, 0.0, 0.0);
+  const double bend = 110.0 * kPi / 180.0, r = 0.04;
+  const Vec3 I = 0.25 * Vec3(std::cos(bend), std::sin(bend), 0.0) + Vec3(0.0, 0.0, 0.0);
+  auto pointsOf = [&](const Vec3& side) {
+    paths::ActionPath p;
+    paths::jointWrapPath(O, I, J, r, side, p);
+    std::vector<Vec3> out;
+    for (int k = 0; k <= 20; ++k) {
+      Vec3 x, t;
+      paths::pointAt(p, p.length * k / 20.0, x, t);
+      out.push_back(x);
+    }
+    return std::make_pair(p.length, out);
+  };
+  const auto [length, reference] = pointsOf(Vec3::UnitZ());
+  paths::ActionPath shortWay;
+  paths::jointWrapPath(O, I, J, r, Vec3::UnitY(), shortWay);  // the side of the crease: the short way
+  EXPECT_NEAR(length, shortWay.length, 1e-12);
+  paths::ActionPath longWay;
+  paths::jointWrapPath(O, I, J, r, -Vec3::UnitY(), longWay);  // over the outside: much longer, so a flip shows
+  ASSERT_GT(longWay.length, length + 0.5 * r);
+  for (const Vec3& noise : {Vec3(1e-9, 0, 0), Vec3(-1e-9, 0, 0), Vec3(0, 1e-9, 0), Vec3(0, -1e-9, 0),
+                            Vec3(3e-7, -2e-7, 0), Vec3(-0.05, 0.05, 0)}) {
+    const auto [l, pts] = pointsOf(Vec3::UnitZ() + noise);
+    EXPECT_NEAR(l, length, 1e-9) << noise.transpose();
+    for (size_t k = 0; k < pts.size(); ++k) EXPECT_LT((pts[k] - reference[k]).norm(), 1e-9) << noise.transpose();
+  }
+}
+
 TEST(Paths, BoneWrapTangentAndShortestAndGeodesic) {
   const Vec3 C(0, 0, 0), e1 = Vec3::UnitZ(), e2 = Vec3::UnitX(), ax = Vec3::UnitY();
   const Vec3 O(0.0, -0.2, 0.06), I(-0.05, 0.25, -0.03);  // O at phi = 0, I round the back

@@ -38,6 +38,11 @@ class MYOSKIN_OT_add_synthetic_arm(bpy.types.Operator):
                       default=1, min=0)
     muscle_scale: FloatProperty(name="Muscle Scale", description="Size of the muscle bellies (0 = smooth arm)",
                                 default=1.0, min=0.0, soft_max=3.0)
+    rings_per_metre: IntProperty(name="Rings per Metre", description="Skin resolution along the arm (400: 2.5 mm "
+                                 "rings, about 33,000 vertices with the default resolution around)",
+                                 default=400, min=20, soft_max=1000)
+    segments_around: IntProperty(name="Segments Around", description="Skin resolution around the arm",
+                                 default=96, min=8, soft_max=256)
     show_truth: BoolProperty(name="Show True Muscles",
                              description="Also add the known muscles as tubes parented to their bones",
                              default=False)
@@ -47,7 +52,9 @@ class MYOSKIN_OT_add_synthetic_arm(bpy.types.Operator):
         wm.progress_begin(0, 3)
         try:
             core = core_loader.core()
-            character, truth = core.make_synthetic_arm(seed=self.seed, muscle_scale=self.muscle_scale)
+            character, truth = core.make_synthetic_arm(seed=self.seed, muscle_scale=self.muscle_scale,
+                                                       rings_per_metre=self.rings_per_metre,
+                                                       segments_around=self.segments_around)
             wm.progress_update(1)
             collection = context.collection or context.scene.collection
             arm_obj, mesh_obj = blender_io.character_to_blender(character, "SyntheticArm", collection)
