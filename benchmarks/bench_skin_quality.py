@@ -30,6 +30,7 @@ characters = [
 ]
 anchored_rows = []
 sweeps = []
+jumps = []
 print(f"{'character':24s} {'joint':20s} {'LBS band':>9s} {'DQS band':>9s} {'Blender DQS':>11s} {'Myoskin':>9s} "
       f"{'Myoskin+PV':>10s} {'Myoskin+VB':>10s} {'VB+keys':>8s} {'bulge over LBS':>22s} {'+PV over LBS':>12s} {'+PV over DQS':>12s} "
       f"{'crossings LBS/DQS/Myo/Myo+PV/Myo+VB/VB+keys':>44s} {'(crumples LBS/VB+keys)':>22s}")
@@ -43,7 +44,7 @@ for name, relative, joints, facing in characters:
             continue
         character = core.load_character(path, require_weights=True)
     start = time.perf_counter()
-    muscles, _ = core.extract_muscles(character)
+    muscles, report = core.extract_muscles(character)
     bound = skin_quality.bind_skin(core, character, muscles)  # Bind once: the table and the sweep reuse it
     for row in skin_quality.measure(core, character, muscles, joints, facing=facing, anchored=True, bound=bound):
         anchored_rows.append((name, row))
@@ -61,6 +62,8 @@ for name, relative, joints, facing in characters:
                                     rig_options=dict(joints_slide=False))
     sweeps.append((name, skin_quality.fold_sweep(core, character, muscles, joints, facing=facing,
                                                  degrees_by_label=ankles, bound=bound), fixed))
+    jumps.append((name, skin_quality.joint_jumps(core, character, bound[0], joints, report["limb_radius"],
+                                                 facing=facing)))
 print()
 print(f"{'character':24s} {'joint':20s} {'LBS band':>9s} {'Myoskin+PV':>10s} {'anchored':>9s} {'anchored bulge over LBS':>24s} "
       f"{'crossings LBS/+PV/anchored':>27s} {'anchored ms':>11s} {'Eq.3 ms':>8s} {'ratio':>6s}")
@@ -100,3 +103,11 @@ for name, sweep, fixed in sweeps:
     print(f"{name[:24]:24s} crumples LBS {total(sweep, 'crumples_lbs')}, on {total(sweep, 'crumples_myoskin_vk')}, off "
           f"{total(fixed, 'crumples_myoskin_vk')}; cases over LBS on {over_lbs(sweep)}, off {over_lbs(fixed)} of "
           f"{sum(len(joint['rows']) for joint in sweep)}")
+print()
+print("Muscle joint jumps: each joint bent 0-150 degrees in 0.5-degree steps with 0, 7 and 23 degrees of twist; a jump is a "
+      "muscle joint moving over 0.05 limb radii and 8 times its median step (a wrap changing its way round)")
+for name, found in jumps:
+    worst = max(found, key=lambda j: j[4]) if found else None
+    where = sorted({(label, round(degrees)) for label, _t, degrees, _n, _m in found})
+    print(f"{name[:24]:24s} {len(found)} jumps" + (f", largest {worst[4]:.2f} r ({worst[3]}, {worst[0]} at "
+                                                   f"{worst[2]:g} degrees); at {where[:8]}" if worst else ""))

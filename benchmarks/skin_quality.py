@@ -254,6 +254,53 @@ def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees
     return out
 
 
+def twisted_pose(character, pose, bone, degrees):
+    """`pose` (#B by 4 by 4) with `bone` and its subtree turned by `degrees` about the bone's posed Y axis (a twist)."""
+    names, parents = list(character.bone_names), np.asarray(character.bone_parents)
+    b = names.index(bone)
+    head = pose[b][:3, 3]
+    rot = _rotation(pose[b][:3, 1], degrees)
+    moved = np.zeros(len(names), bool)
+    for i in range(len(names)):  # parents come first
+        moved[i] = i == b or (parents[i] >= 0 and moved[parents[i]])
+    m = np.eye(4)
+    m[:3, :3] = rot
+    m[:3, 3] = head - rot @ head
+    out = pose.copy()
+    out[moved] = m @ pose[moved]
+    return out
+
+
+def joint_jumps(core, character, rig, joints, limb_radius, facing=(0.0, 0.0, 1.0), twists=(0.0, 7.0, 23.0),
+                step=0.5, last=150.0):
+    """Where the muscle joints jump: each joint of `joints` (measure's rows) bent from 0 to `last` degrees in `step`s,
+    its bone also twisted by each of `twists` degrees; a jump is a muscle joint moving more than 0.05 limb radii and 8
+    times its median step over that sweep (a muscle's path changing its way round a wrap, not a fast distal joint).
+    Returns [(label, twist, degrees, joint name, move in limb radii)], in sweep order."""
+    names = list(character.bone_names)
+    joint_names = list(rig.joint_names)
+    out = []
+    for label, bone, hinge, _upper, direction, _degrees in joints:
+        if bone not in names:
+            continue
+        for twist in twists:
+            previous, steps, angles = None, [], []
+            for degrees in np.arange(0.0, last + 1e-9, step):
+                pose = bent_pose(character, bone, hinge, direction, degrees, facing)
+                if twist:
+                    pose = twisted_pose(character, pose, bone, twist)
+                at = np.asarray(rig.evaluate(pose, with_surfaces=False)["joint_matrices"])[:, :3, 3]
+                if previous is not None:
+                    steps.append(np.linalg.norm(at - previous, axis=1))
+                    angles.append(degrees)
+                previous = at
+            moves = np.array(steps)
+            jumps = moves > np.maximum(0.05 * limb_radius, 8.0 * np.median(moves, axis=0))[None, :]
+            out += [(label, twist, angles[i], joint_names[k], float(moves[i, k] / limb_radius))
+                    for i, k in zip(*np.nonzero(jumps))]
+    return out
+
+
 def measure(core, character, muscles, joints, hybrid_options=None, facing=(0.0, 0.0, 1.0), anchored=False,
             share_options=None, rig_options=None, bound=None):
     """Per joint: dict(label, lbs, dqs, blender_dqs, myoskin, myoskin_pv, myoskin_vb, myoskin_vk band changes, bulge,
