@@ -2,7 +2,8 @@
 the anchored skin through the
 core (benchmarks/skin_quality.py defines the measures). Prints a table per character and a second one for the
 anchored skin (band, bulge, crossings, ms per frame against Equation 3 in the same run), then a bend sweep per joint
-(30-150 degrees, human ankles 15-60: where Bind's skin folds more than LBS, which one test angle hides); never asserts. Joints
+(30-150 degrees, human ankles 15-60: where Bind's skin folds more than LBS, which one test angle hides), the Joints Slide
+on/off crumples, and the muscle joints' jumps over a 0-150 degree sweep (skin_quality.joint_jumps); never asserts. Joints
 (skin_quality.py): elbow, knee, shoulder, hip and ankle plantar flexion (the calf's bulge on the lower leg). Characters:
 makehuman_muscular_male, a generated biped (makeSyntheticBody, known muscles), Quaternius' woman soldier (four
 meshes, x100) and Quaternius' horse (x100). Usage (./myoskin.sh bench

@@ -108,7 +108,8 @@ void usage(std::ostream& out) {
          "          [--preserve-volume] [--dominance D] [--joints-slide on|off] [--threads N] [--skin-solve]\n"
          "          simulate a sequence to a PC2 cache: jiggle of the muscle masses, a temporal filter against jitter,\n"
          "          detail sculpted on one frame re-applied on every frame; --frames with --state-in/--state-out\n"
-         "          bakes chunks in separate processes that stitch to the same result as one run\n"
+         "          bakes chunks in separate processes that stitch to the same result as one run (a state baked\n"
+         "          with other settings is refused, naming the setting)\n"
          "CHARACTER is a .glb/.gltf, or an .obj with a <name>.skeleton.json beside it. ROLES.json: {\"bone\": \"role\"}.\n";
 }
 
@@ -378,6 +379,7 @@ struct BoundSkin {
   SkinnerOptions options;
   std::shared_ptr<Skinner> skinner;
   std::vector<VolumeKey> volumeKeys;  // --volume-blend: the joints' volume keys (shape keys in Blender)
+  std::map<std::string, std::string> settings;  // the bind's settings, kept in simulate's state files
 };
 
 // Loads and binds from the command's arguments (--muscles, --dominance, --threads, --preserve-volume,
@@ -420,7 +422,16 @@ BoundSkin bindFromArgs(const Args& args, const std::string& command, const std::
     HybridWeightOptions ho;
     ho.dominance = numberOption(args, "--dominance", ho.dominance);
     b.weights = computeHybridWeights(c.mesh, c.weights, *b.rig, ho);
+    char dominance[32];
+    std::snprintf(dominance, sizeof dominance, "%.17g", ho.dominance);
+    b.settings["bind.dominance"] = dominance;
+    b.settings["bind.joints_slide"] = rigOptions.jointsSlide ? "on" : "off";
   }
+  b.settings["bind.muscles"] = std::to_string(b.rig ? b.rig->numMuscles() : 0);
+  const std::string scale = b.options.dualQuatScale == DualQuatScale::Blended ? ", blended scale" : ", pivot scale";
+  b.settings["bind.skinning"] = volumeBlend                  ? "volume blend" + scale
+                                : b.options.preserveVolume ? "preserve volume" + scale
+                                                           : "linear";
   const int numJoints = c.skeleton.numBones() + (b.rig ? b.rig->numJoints() : 0);
   if (volumeBlend) {  // shares from the skeleton weights; the joints' rest frames shape the dual-quaternion part
     const Eigen::VectorXd share = computeDqsShare(c.skeleton, c.weights, c.mesh);
@@ -569,6 +580,7 @@ int cmdSimulate(const Args& args) {
   const BoundSkin b = bindFromArgs(args, "simulate", {"--jiggle", "--filter", "--skin-solve"});
   const Character& c = b.character;
   const PoseSequence poses = readPoseJson(args.options.at("--pose"), c.skeleton);
+  so.settings = b.settings;  // a chunk restores only a state baked with the same bind
   Simulation sim(c.mesh, c.skeleton, b.rig.get(), b.skinner, poses, so);
   // The per-frame skin solve: the skinned (jiggled) frame is the goal, the posed muscles collide.
   std::unique_ptr<SkinSolver> solver;

@@ -238,7 +238,7 @@ TEST(Paths, JointWrapOfAMuscleBesideTheJointDoesNotFlipWithRounding) {
   // arm's elbow); the path is the short way for every such side, and the same within 1e-9 of the bend's move.
   const Vec3 O(-0.3, 0.02, 0.0), J(0.0, 0.0, 0.0);
   const double bend = 110.0 * kPi / 180.0, r = 0.04;
-  const Vec3 I = 0.25 * Vec3(std::cos(bend), std::sin(bend), 0.0) + Vec3(0.0, 0.0, 0.0);
+  const Vec3 I = 0.25 * Vec3(std::cos(bend), std::sin(bend), 0.0);
   auto pointsOf = [&](const Vec3& side) {
     paths::ActionPath p;
     paths::jointWrapPath(O, I, J, r, side, p);
@@ -263,6 +263,8 @@ TEST(Paths, JointWrapOfAMuscleBesideTheJointDoesNotFlipWithRounding) {
     EXPECT_NEAR(l, length, 1e-9) << noise.transpose();
     for (size_t k = 0; k < pts.size(); ++k) EXPECT_LT((pts[k] - reference[k]).norm(), 1e-9) << noise.transpose();
   }
+  // Just outside the band (0.2 of the side towards the outside) the side names the outside again.
+  EXPECT_NEAR(pointsOf(Vec3::UnitZ() - 0.2 * Vec3::UnitY()).first, longWay.length, 1e-9);
 }
 
 TEST(Paths, BoneWrapTangentAndShortestAndGeodesic) {

@@ -625,6 +625,42 @@ TEST(Simulation, ChunkedBakeEqualsSingleBake) {
   other.fps = 30;
   Simulation at30(limb().skin, limb().skeleton, &b.rig, b.skinner, seq, other);
   EXPECT_NE(test::inputErrorOf([&] { bakeAll(at30, 14, 20, &s); }).find("fps"), std::string::npos);
+  // The settings that shape the frames travel with the state (the caller's and the simulation's own): another
+  // jiggle amount, no filter, no skin solve or another caller setting is refused by name; equal settings stitch.
+  ASSERT_TRUE(s.hasSettings);
+  EXPECT_EQ(s.settings.at("simulation.skin_solve"), "on");
+  auto refusal = [&](SimulationOptions changed, bool solve) {
+    Simulation other(limb().skin, limb().skeleton, &b.rig, b.skinner, seq, changed);
+    if (solve) other.setSkinSolve(jitterySolve);
+    return test::inputErrorOf([&] { bakeAll(other, 14, 20, &s); });
+  };
+  SimulationOptions softer = o;
+  softer.jiggleOptions.amount = 0.5;
+  EXPECT_NE(refusal(softer, true).find("with simulation.jiggle"), std::string::npos);
+  SimulationOptions unfiltered = o;
+  unfiltered.filter = false;
+  EXPECT_NE(refusal(unfiltered, true).find("simulation.filter on"), std::string::npos);
+  EXPECT_NE(refusal(o, false).find("simulation.skin_solve on, this run has off"), std::string::npos);
+  SimulationOptions tagged = o;
+  tagged.settings["bind.joints_slide"] = "off";
+  EXPECT_NE(refusal(tagged, true).find("with bind.joints_slide nothing, this run has off"), std::string::npos);
+  {
+    Simulation same(limb().skin, limb().skeleton, &b.rig, b.skinner, seq, o);
+    same.setSkinSolve(jitterySolve);
+    const std::vector<PointsF> again = bakeAll(same, 14, 29, &s);
+    for (size_t f = 0; f < again.size(); ++f)
+      EXPECT_EQ(std::memcmp(again[f].data(), all[13 + f].data(), sizeof(float) * again[f].size()), 0);
+  }
+  // A state written before settings were kept has none and is not checked for them.
+  SimulationState old = s;
+  old.hasSettings = false;
+  old.settings.clear();
+  writeSimulationState((dir / "old.json").string(), old);
+  const SimulationState back = readSimulationState((dir / "old.json").string());
+  EXPECT_FALSE(back.hasSettings);
+  Simulation lenient(limb().skin, limb().skeleton, &b.rig, b.skinner, seq, softer);
+  lenient.setSkinSolve(jitterySolve);
+  EXPECT_NO_THROW(bakeAll(lenient, 14, 16, &back));
   std::filesystem::remove_all(dir);
 }
 

@@ -335,6 +335,18 @@ TEST(SkinQuality, SelfIntersectionsWithAFocusAreThePairsThatHaveAFocusTriangle) 
     }
   }
   EXPECT_GT(checkedPairs, 1000u);
+  // Coordinates whose span passes the double range (no grid fits them): the same answer, from the whole test.
+  Points v(9, 3);
+  v << 0, 0, 0, 1, 0, 0, 1, 1, 0,  // a triangle in z = 0
+      0.6, 0.2, -1, 0.6, 0.2, 1, 0.9, 0.1, 0,  // one through it
+      -1e308, 0.5, 0.5, 1e308, 0.5, 0.5, 0.0, 0.5, -0.5;  // one across everything, through both
+  Triangles t3(3, 3);
+  t3 << 0, 1, 2, 3, 4, 5, 6, 7, 8;
+  SelfIntersectionTest small(t3, v.rows());
+  const std::vector<std::pair<int, int>> whole = small.pairs(v);
+  EXPECT_EQ(whole, (std::vector<std::pair<int, int>>{{0, 1}, {0, 2}}));
+  EXPECT_EQ(small.pairs(v, {0, 0, 1}), (std::vector<std::pair<int, int>>{{0, 2}}));  // past the grid
+  EXPECT_EQ(small.pairs(v, {1, 0, 0}), whole);  // the grid, the wide triangle against every box
 }
 
 // ============================================================================

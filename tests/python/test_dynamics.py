@@ -62,6 +62,32 @@ def test_cli_chunks_stitch_to_the_single_bake(core, arm_files):
     assert moved[6:10].max() > 1e-3 and moved[-1] < moved[6:10].max()
 
 
+def test_cli_chunks_refuse_a_state_baked_with_other_settings(core, arm_files):
+    """A state file keeps the bind's and the simulation's settings: a chunk baked otherwise (joints slide, dominance,
+    skinning mode, jiggle amount) is refused by the setting's name; the same settings stitch bit for bit; a state
+    written before settings were kept is taken as before."""
+    d = arm_files
+    simulate(d, d / "k1.pc2", "--jiggle", "--joints-slide", "off", "--frames", "1-9", "--state-out", str(d / "k9.json"))
+    state = json.loads((d / "k9.json").read_text())
+    assert state["settings"]["bind.joints_slide"] == "off" and state["settings"]["bind.skinning"] == "linear"
+    tail = ["--jiggle", "--frames", "10-24", "--state-in", str(d / "k9.json")]
+    for extra, message in [([], "with bind.joints_slide off, this run has on"),
+                           (["--joints-slide", "off", "--dominance", "0.7"], "with bind.dominance"),
+                           (["--joints-slide", "off", "--preserve-volume"],
+                            "with bind.skinning linear, this run has preserve volume, pivot scale"),
+                           (["--joints-slide", "off", "--jiggle-amount", "0.5"], "with simulation.jiggle")]:
+        r = run_cli("simulate", str(d / "arm.obj"), "--muscles", str(d / "muscles.json"), "--pose", str(d / "seq.json"),
+                    "-o", str(d / "k_bad.pc2"), *tail, *extra)
+        assert r.returncode == 1 and message in r.stderr and r.stderr.count("\n") == 1, (extra, r.stderr)
+    simulate(d, d / "k2.pc2", *tail, "--joints-slide", "off")
+    simulate(d, d / "k_all.pc2", "--jiggle", "--joints-slide", "off")
+    stitched = np.concatenate([core.read_pc2(str(d / n))["frames"] for n in ("k1.pc2", "k2.pc2")])
+    assert np.array_equal(stitched, core.read_pc2(str(d / "k_all.pc2"))["frames"])
+    del state["settings"]
+    (d / "k9_old.json").write_text(json.dumps(state))
+    simulate(d, d / "k_old.pc2", "--jiggle", "--frames", "10-24", "--state-in", str(d / "k9_old.json"))
+
+
 def test_cli_bad_input(core, arm_files):
     d = arm_files
     for extra, message in [(["--jiggle", "--frames", "5-2"], "comes before"),

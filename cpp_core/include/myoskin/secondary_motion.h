@@ -12,6 +12,7 @@
 #pragma once
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -201,6 +202,10 @@ struct SimulationOptions {
   // the vertex exactly where plain skinning puts it and 1 gives the full jiggle. Costs a second skinning per
   // frame; ignored without jiggle.
   std::vector<double> jiggleVertexInfluence;
+  // What else shapes the frames, named by the caller (the CLI: the bind's skinning mode, dominance, joints slide,
+  // the skin solve): kept in every state with the simulation's own settings (the filter, the jiggle's); a chunk
+  // restores only a state made with the same ones.
+  std::map<std::string, std::string> settings;
 };
 
 // Where a per-frame skin solve (collision against the muscles) plugs in: called on every raw frame after
@@ -218,6 +223,10 @@ struct SimulationState {
   std::vector<std::string> muscles; // names, #M (empty without jiggle)
   bool hasJiggle = false;
   JiggleState jiggle;
+  // The settings the frames were made with (SimulationOptions::settings and the simulation's own, as text); a state
+  // file written before they were kept has none (hasSettings false) and is not checked for them.
+  bool hasSettings = false;
+  std::map<std::string, std::string> settings;
 };
 
 void writeSimulationState(const std::string& path, const SimulationState& state);

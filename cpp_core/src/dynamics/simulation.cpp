@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <optional>
 #include <string>
@@ -25,6 +27,27 @@ nlohmann::json vecs(const std::vector<Vec3>& v) {
   nlohmann::json a = nlohmann::json::array();
   for (const Vec3& p : v) a.push_back({p.x(), p.y(), p.z()});
   return a;
+}
+
+// Text of a setting: a number with the digits that read back exactly; a list of numbers as the FNV-1a hash of
+// their bytes (equal lists give equal text).
+std::string settingText(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", x);
+  return buf;
+}
+
+std::string settingText(const std::vector<double>& values) {
+  if (values.empty()) return "default";
+  uint64_t h = 1469598103934665603ull;
+  for (double v : values) {
+    unsigned char bytes[sizeof v];
+    std::memcpy(bytes, &v, sizeof v);
+    for (unsigned char b : bytes) h = (h ^ b) * 1099511628211ull;
+  }
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%zu values, %016llx", values.size(), static_cast<unsigned long long>(h));
+  return buf;
 }
 
 std::vector<Vec3> vecsFrom(const nlohmann::json& a, const std::string& what) {
@@ -50,6 +73,7 @@ void writeSimulationState(const std::string& path, const SimulationState& s) {
   j["time_step"] = s.timeStep;
   j["start_frame"] = s.startFrame;
   j["muscles"] = s.muscles;
+  if (s.hasSettings) j["settings"] = s.settings;
   if (s.hasJiggle) {
     j["jiggle"] = {{"step", s.jiggle.step},
                    {"offset", vecs(s.jiggle.offset)},
@@ -80,6 +104,10 @@ SimulationState readSimulationState(const std::string& path) {
     s.timeStep = j.at("time_step").get<double>();
     s.startFrame = j.at("start_frame").get<int>();
     s.muscles = j.at("muscles").get<std::vector<std::string>>();
+    if (j.contains("settings")) {
+      s.hasSettings = true;
+      s.settings = j["settings"].get<std::map<std::string, std::string>>();
+    }
     if (j.contains("jiggle")) {
       const auto& g = j["jiggle"];
       s.hasJiggle = true;
@@ -207,12 +235,35 @@ struct Simulation::Impl {
     for (Frame& s : slots) s.frame = INT32_MIN;
   }
 
+  // The caller's settings and the simulation's own: the filter's, the jiggle's and the skin solve's presence.
+  std::map<std::string, std::string> settings() const {
+    std::map<std::string, std::string> out = options.settings;
+    out["simulation.filter"] = options.filter ? "on, tolerances " + settingText(options.filterOptions.relativeTolerance) +
+                                                    " " + settingText(options.filterOptions.absoluteTolerance) + ", scale " +
+                                                    settingText(options.filterLengthScale)
+                                              : "off";
+    out["simulation.skin_solve"] = hook ? "on" : "off";
+    if (jiggle) {
+      const JiggleOptions& o = options.jiggleOptions;
+      std::vector<double> params, vertexInfluence(options.jiggleVertexInfluence);
+      for (const JiggleParams& p : options.jiggleParams) params.insert(params.end(), {p.mass, p.stiffness, p.damping});
+      out["simulation.jiggle"] = settingText({o.frequency, o.sizeExponent, o.dampingRatio, o.density, o.amount,
+                                              o.maxOffset}) + "; params " + settingText(params) + "; influence " +
+                                 settingText(options.jiggleInfluence) + "; painted " + settingText(vertexInfluence);
+    } else {
+      out["simulation.jiggle"] = "off";
+    }
+    return out;
+  }
+
   SimulationState state(int f) {
     SimulationState s;
     s.frame = f;
     s.fps = options.fps;
     s.timeStep = options.jiggleOptions.timeStep;
     s.startFrame = start;
+    s.hasSettings = true;
+    s.settings = settings();
     if (jiggle) {
       for (const Muscle& m : rig->muscles()) s.muscles.push_back(m.name);
       s.hasJiggle = true;
@@ -361,6 +412,16 @@ void Simulation::restore(const SimulationState& s) {
   if (s.fps != d.options.fps) throw InputError(why + "at " + std::to_string(s.fps) + " fps, this run is at " + std::to_string(d.options.fps));
   if (s.startFrame != d.start) throw InputError(why + "for a sequence starting at frame " + std::to_string(s.startFrame));
   if (s.hasJiggle != static_cast<bool>(d.jiggle)) throw InputError(why + (s.hasJiggle ? "with" : "without") + " jiggle");
+  if (s.hasSettings) {  // the first setting that differs, by name
+    const std::map<std::string, std::string> now = d.settings();
+    for (const auto& [name, value] : now) {
+      const auto it = s.settings.find(name);
+      const std::string then = it == s.settings.end() ? "nothing" : it->second;
+      if (then != value) throw InputError(why + "with " + name + " " + then + ", this run has " + value);
+    }
+    for (const auto& [name, value] : s.settings)
+      if (!now.count(name)) throw InputError(why + "with " + name + " " + value + ", this run has nothing");
+  }
   d.checkFrame(s.frame, "the state's");
   d.invalidate();  // raw frames kept from another history
   if (!d.jiggle) return;

@@ -125,6 +125,9 @@ void straightPath(const Vec3& O, const Vec3& I, ActionPath& path) {
 
 // The widest bend (sine) within which a joint wrap's side draws its plane (jointWrapPath): 0.1, about 6 degrees.
 constexpr double kSideBand = 0.1;
+// The sine of the angle from the wrap plane's normal within which a joint wrap's side names no way round (a muscle
+// beside the joint): 0.1, about 6 degrees.
+constexpr double kBesideBand = 0.1;
 
 void jointWrapPath(const Vec3& O, const Vec3& I, const Vec3& J, double r, const Vec3& side, ActionPath& path) {
   const Vec3 o = O - J, i = I - J;
@@ -156,13 +159,13 @@ void jointWrapPath(const Vec3& O, const Vec3& I, const Vec3& J, double r, const 
 
   // In the plane: O at angle 0, I at angle aI; go round on the side of `side`: counter-clockwise when
   // `side` lies on the side of the bisector of the counter-clockwise arc from O to I, else clockwise. A side within
-  // kSideBand of the plane's normal (a muscle beside the joint, neither over nor in front of it) names no side: the
+  // kBesideBand of the plane's normal (a muscle beside the joint, neither over nor in front of it) names no side: the
   // short way (its in-plane part would be rounding, and the wrap would flip sides with it).
   const double aI = std::atan2(i.dot(ey), i.dot(ex));
   const double ccw = wrapAngle(aI);
   const Vec3 s2(side.dot(ex), side.dot(ey), 0.0);
   int dir;
-  if (!(s2.norm() > kSideBand * side.norm())) dir = ccw <= kPi ? 1 : -1;
+  if (!(s2.norm() > kBesideBand * side.norm())) dir = ccw <= kPi ? 1 : -1;
   else dir = s2.x() * std::cos(0.5 * ccw) + s2.y() * std::sin(0.5 * ccw) >= 0 ? 1 : -1;  // side of the short arc's bisector
   const double sweep = dir > 0 ? ccw : kTwoPi - ccw;
   const double dOa = std::acos(rr / dO), dIa = std::acos(rr / dI);

@@ -99,22 +99,25 @@ std::vector<std::pair<int, int>> asRows(const std::vector<FacePair>& found, cons
 }
 
 // Calls visit(a, b) once for every pair of boxes that overlap (closed: touching counts, as CGAL's box intersection)
-// with a in `focus` and b in `focus` (a before b) or in `others`. A uniform grid of cells twice the focus boxes' mean
-// extent: each box is listed in the cells it overlaps (one spanning more than kMaxCellsAcross in a direction is tested
-// against every box), and a pair is visited in the one cell holding the largest of its lower corners.
+// with a in `focus` and b in `focus` (a before b) or in `others`. A uniform grid of cells three times the focus boxes'
+// median extent: each box is listed in the cells it overlaps (one spanning more than kMaxCellsAcross in a direction is
+// tested against every box), and a pair is visited in the one cell holding the largest of its lower corners. False
+// (nothing visited) when the bounds are too large for the grid's arithmetic (coordinates near the double range).
 template <class Box, class Visit>
-void forOverlappingBoxes(const std::vector<Box>& focus, const std::vector<Box>& others, const CGAL::Bbox_3& bounds,
+bool forOverlappingBoxes(const std::vector<Box>& focus, const std::vector<Box>& others, const CGAL::Bbox_3& bounds,
                          Visit&& visit) {
-  if (focus.empty()) return;
+  if (focus.empty()) return true;
   constexpr int kMaxCellsAcross = 4;
   constexpr double kCellsPerAxisMax = 1 << 20;  // cell coordinates fit in 21 bits
-  double meanExtent = 0.0;
+  std::vector<double> extents;
+  extents.reserve(focus.size());
   for (const Box& b : focus)
-    meanExtent += std::max({b.max_coord(0) - b.min_coord(0), b.max_coord(1) - b.min_coord(1),
-                            b.max_coord(2) - b.min_coord(2)});
-  meanExtent /= static_cast<double>(focus.size());
-  double cell = 2.0 * meanExtent;
+    extents.push_back(std::max({b.max_coord(0) - b.min_coord(0), b.max_coord(1) - b.min_coord(1),
+                                b.max_coord(2) - b.min_coord(2)}));
+  std::nth_element(extents.begin(), extents.begin() + static_cast<std::ptrdiff_t>(extents.size() / 2), extents.end());
+  double cell = 3.0 * extents[extents.size() / 2];
   for (int d = 0; d < 3; ++d) cell = std::max(cell, (bounds.max(d) - bounds.min(d)) / (kCellsPerAxisMax - 2.0));
+  if (!std::isfinite(cell)) return false;
   if (!(cell > 0.0)) cell = 1.0;  // every focus box a point at one place: one cell
   auto overlap = [](const Box& a, const Box& b) {
     for (int d = 0; d < 3; ++d)
@@ -123,7 +126,7 @@ void forOverlappingBoxes(const std::vector<Box>& focus, const std::vector<Box>& 
   };
   auto cellOf = [&](double x, int d) {  // clamped to the focus bounds' cells (every overlap lies inside them)
     const double c = std::floor((std::clamp(x, bounds.min(d), bounds.max(d)) - bounds.min(d)) / cell);
-    return static_cast<uint64_t>(std::clamp(c, 0.0, kCellsPerAxisMax - 1.0));
+    return c > 0.0 ? static_cast<uint64_t>(std::min(c, kCellsPerAxisMax - 1.0)) : uint64_t{0};
   };
   auto key = [](uint64_t i, uint64_t j, uint64_t k) { return (i << 42) | (j << 21) | k; };
   // (cell key, box): focus boxes numbered 0..F-1, the others F.. ; big boxes aside.
@@ -182,6 +185,7 @@ void forOverlappingBoxes(const std::vector<Box>& focus, const std::vector<Box>& 
       if (j >= nf && !CGAL::do_overlap(boxAt(j).bbox(), bounds)) continue;
       visitPair(std::min(i, j), std::max(i, j));
     }
+  return true;
 }
 
 }  // namespace
@@ -239,11 +243,17 @@ std::vector<std::pair<int, int>> SelfIntersectionTest::pairs(const Points& verti
       otherBoxes.emplace_back(box, f);
     }
   }
+  // CGAL's own face test (internal, the same functor and signature in CGAL 5.5 and 6.0, the two Debian releases built).
   const PMP::internal::Strict_intersect_faces<Box, SurfaceMesh, SurfaceMesh::Property_map<SurfaceMesh::Vertex_index,
                                                                                          Kernel::Point_3>,
                                               Kernel, std::back_insert_iterator<std::vector<FacePair>>>
       test(mesh, mesh.points(), Kernel(), std::back_inserter(found));
-  forOverlappingBoxes(focusBoxes, otherBoxes, bounds, [&](const Box& a, const Box& b) { test(&a, &b); });
+  if (!forOverlappingBoxes(focusBoxes, otherBoxes, bounds, [&](const Box& a, const Box& b) { test(&a, &b); })) {
+    std::vector<std::pair<int, int>> all = pairs(vertices), kept;  // coordinates past the grid: the whole test
+    for (const auto& pr : all)
+      if (focus[static_cast<size_t>(pr.first)] || focus[static_cast<size_t>(pr.second)]) kept.push_back(pr);
+    return kept;
+  }
   return asRows(found, impl_->faceOf);
 }
 
