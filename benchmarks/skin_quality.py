@@ -63,11 +63,24 @@ def _rotation(axis, degrees):
     return np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * k @ k
 
 
+def _turned_subtree(character, pose, b, rot, centre):
+    """`pose` (#B by 4 by 4) with bone index `b` and its subtree turned by the 3 by 3 `rot` about the point `centre`."""
+    parents = np.asarray(character.bone_parents)
+    moved = np.zeros(len(parents), bool)
+    for i in range(len(parents)):  # parents come first
+        moved[i] = i == b or (parents[i] >= 0 and moved[parents[i]])
+    m = np.eye(4)
+    m[:3, :3] = rot
+    m[:3, 3] = centre - rot @ centre
+    out = np.array(pose, copy=True)
+    out[moved] = m @ out[moved]
+    return out
+
+
 def bent_pose(character, bone, hinge, direction, degrees, facing=(0.0, 0.0, 1.0)):
     """#B by 4 by 4 posed matrices: `bone` and its subtree turned about its head by `degrees`, about the axis
     perpendicular to the `hinge` bone and to `direction` (a world-space rotation; every other bone at rest)."""
     core_names = list(character.bone_names)
-    parents = np.asarray(character.bone_parents)
     heads, tails = np.asarray(character.bone_heads), np.asarray(character.bone_tails)
     rest = np.asarray(character.bone_rest)
     b = core_names.index(bone)
@@ -79,17 +92,7 @@ def bent_pose(character, bone, hinge, direction, degrees, facing=(0.0, 0.0, 1.0)
         axis = np.cross(d, facing if direction == "forward" else -facing)
     else:  # outward: about the facing axis, the tail swinging away from the mirror plane
         axis = facing if heads[b][0] > 0 else -facing
-    rot = _rotation(axis, degrees)
-    joint = heads[b]
-    moved = np.zeros(len(core_names), bool)
-    for i in range(len(core_names)):  # parents come first
-        moved[i] = i == b or (parents[i] >= 0 and moved[parents[i]])
-    m = np.eye(4)
-    m[:3, :3] = rot
-    m[:3, 3] = joint - rot @ joint
-    pose = rest.copy()
-    pose[moved] = m @ rest[moved]
-    return pose
+    return _turned_subtree(character, rest, b, _rotation(axis, degrees), heads[b])
 
 
 def dqs(rest_vertices, joints, weights, transforms):
@@ -256,19 +259,8 @@ def fold_sweep(core, character, muscles, joints, facing=(0.0, 0.0, 1.0), degrees
 
 def twisted_pose(character, pose, bone, degrees):
     """`pose` (#B by 4 by 4) with `bone` and its subtree turned by `degrees` about the bone's posed Y axis (a twist)."""
-    names, parents = list(character.bone_names), np.asarray(character.bone_parents)
-    b = names.index(bone)
-    head = pose[b][:3, 3]
-    rot = _rotation(pose[b][:3, 1], degrees)
-    moved = np.zeros(len(names), bool)
-    for i in range(len(names)):  # parents come first
-        moved[i] = i == b or (parents[i] >= 0 and moved[parents[i]])
-    m = np.eye(4)
-    m[:3, :3] = rot
-    m[:3, 3] = head - rot @ head
-    out = pose.copy()
-    out[moved] = m @ pose[moved]
-    return out
+    b = list(character.bone_names).index(bone)
+    return _turned_subtree(character, pose, b, _rotation(pose[b][:3, 1], degrees), pose[b][:3, 3])
 
 
 def joint_jumps(core, character, rig, joints, limb_radius, facing=(0.0, 0.0, 1.0), twists=(0.0, 7.0, 23.0),

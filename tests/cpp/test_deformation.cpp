@@ -115,6 +115,20 @@ Pose stretchPose(double dx) {
 
 double relDiff(const Mat4& a, const Mat4& b) { return (a - b).norm() / std::max(1.0, b.norm()); }
 
+// A joint wrap's length and 21 points evenly along it.
+std::pair<double, std::vector<Vec3>> jointWrapPoints(const Vec3& O, const Vec3& I, const Vec3& J, double r,
+                                                     const Vec3& side) {
+  paths::ActionPath p;
+  paths::jointWrapPath(O, I, J, r, side, p);
+  std::vector<Vec3> out;
+  for (int k = 0; k <= 20; ++k) {
+    Vec3 x, t;
+    paths::pointAt(p, p.length * k / 20.0, x, t);
+    out.push_back(x);
+  }
+  return {p.length, out};
+}
+
 }  // namespace
 
 // ============================================================================
@@ -186,17 +200,7 @@ TEST(Paths, JointWrapIsContinuousThroughAStraightLimb) {
   // any direction: points along it move by at most a few times I's own move.
   const Vec3 O(-0.3, 0.0, 0.0), J(0.0, 0.0, 0.0), side = Vec3::UnitY();
   const double r = 0.01;  // angular radius seen from I: 0.01 / 0.25 = 0.04 rad
-  auto pointsOf = [&](const Vec3& I) {
-    paths::ActionPath p;
-    paths::jointWrapPath(O, I, J, r, side, p);
-    std::vector<Vec3> out;
-    for (int k = 0; k <= 20; ++k) {
-      Vec3 x, t;
-      paths::pointAt(p, p.length * k / 20.0, x, t);
-      out.push_back(x);
-    }
-    return out;
-  };
+  auto pointsOf = [&](const Vec3& I) { return jointWrapPoints(O, I, J, r, side).second; };
   auto moved = [](const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
     double m = 0.0;
     for (size_t k = 0; k < a.size(); ++k) m = std::max(m, (a[k] - b[k]).norm());
@@ -239,17 +243,7 @@ TEST(Paths, JointWrapOfAMuscleBesideTheJointDoesNotFlipWithRounding) {
   const Vec3 O(-0.3, 0.02, 0.0), J(0.0, 0.0, 0.0);
   const double bend = 110.0 * kPi / 180.0, r = 0.04;
   const Vec3 I = 0.25 * Vec3(std::cos(bend), std::sin(bend), 0.0);
-  auto pointsOf = [&](const Vec3& side) {
-    paths::ActionPath p;
-    paths::jointWrapPath(O, I, J, r, side, p);
-    std::vector<Vec3> out;
-    for (int k = 0; k <= 20; ++k) {
-      Vec3 x, t;
-      paths::pointAt(p, p.length * k / 20.0, x, t);
-      out.push_back(x);
-    }
-    return std::make_pair(p.length, out);
-  };
+  auto pointsOf = [&](const Vec3& side) { return jointWrapPoints(O, I, J, r, side); };
   const auto [length, reference] = pointsOf(Vec3::UnitZ());
   paths::ActionPath shortWay;
   paths::jointWrapPath(O, I, J, r, Vec3::UnitY(), shortWay);  // the side of the crease: the short way
