@@ -113,6 +113,8 @@ struct MuscleModel {
   Vec3 originLocal, insertionLocal;  // in the rest frames of their bones
   Vec3 sideLocal = Vec3::Zero();     // joint wrap: side direction in sideBone's rest frame
   double restLength = 0.0;
+  // A joint wrap's two ways round (PosedWays) share them, so a frame depends on the path's shape alone, not on which
+  // way it is called: the start of the way that weighs more at rest, the end of the rest path (the ways blended).
   Vec3 tangentLocal;                 // rest start tangent in the origin bone's frame
   Mat3 frameLocal;                   // rest start frame in the origin bone's frame
   Vec3 endTangentLocal;              // rest end tangent in the insertion bone's frame
@@ -131,6 +133,15 @@ struct MuscleModel {
   std::vector<Vec3> localA, localB;
 };
 
+// The posed action path: path[0] alone (weight 1), or a joint wrap's short way path[0] and long way path[1] with their
+// weights (summing to 1; a way of weight 0 is not evaluated).
+struct PosedWays {
+  paths::ActionPath path[2];
+  double weight[2] = {1.0, 0.0};
+  double length() const { return weight[0] * path[0].length + weight[1] * path[1].length; }
+  bool wrapped() const { return path[weight[1] > weight[0] ? 1 : 0].wrapped; }
+};
+
 struct MuscleRig::Impl {
   Skeleton skeleton;
   std::vector<Muscle> muscles;
@@ -140,28 +151,37 @@ struct MuscleRig::Impl {
   std::vector<Mat4> bind;
   std::vector<double> restLengths;
 
-  // Posed origin/insertion and the action path of muscle m.
-  void posedPath(int m, const Pose& pose, paths::ActionPath& path) const;
-  // Start frame of the posed path (rest frame carried by the origin bone, turned onto the tangent).
+  // Posed origin/insertion and the action path of muscle m (both ways round a joint wrap).
+  void posedWays(int m, const Pose& pose, PosedWays& ways) const;
+  // Start frame of a posed path (rest frame carried by the origin bone, turned onto the tangent).
   Mat3 startFrame(int m, const Pose& pose, const paths::ActionPath& path) const;
   // Twist (radians about the end tangent) from the frame carried to the path's end to the frame the
   // insertion bone carries there; shared along the path by MuscleModel::twistShare.
-  double endTwist(int m, const Pose& pose, const paths::ActionPath& path, const Mat3& F0) const;
+  double endTwist(int m, const Pose& pose, const Mat3& carried) const;
+  // Frames and points at stations st[0..n) (increasing), the ways blended by their weights (points linearly, frames
+  // by slerp), then turned by their share of the end twist of the blended path. For the rest model (`restEnd`): no
+  // twist, and the carried end frame out.
+  void stationsAt(int m, const Pose& pose, const PosedWays& ways, const int* st, int n, Mat3* F, Vec3* P,
+                  Mat3* restEnd = nullptr) const;
   bool distributeTwist = true;
   bool twistFollowsBones = true;
   bool jointsSlide = true;
 };
 
-void MuscleRig::Impl::posedPath(int m, const Pose& pose, paths::ActionPath& path) const {
+void MuscleRig::Impl::posedWays(int m, const Pose& pose, PosedWays& ways) const {
   const MuscleModel& mm = models[m];
   const Vec3 O = transformPoint(pose.matrices[mm.originBone], mm.originLocal);
   const Vec3 I = transformPoint(pose.matrices[mm.insertionBone], mm.insertionLocal);
+  ways.weight[0] = 1.0, ways.weight[1] = 0.0;
+  paths::ActionPath& path = ways.path[0];
   switch (mm.wrap) {
     case WrapType::None: paths::straightPath(O, I, path); return;
     case WrapType::Joint: {
       const Mat4& wb = pose.matrices[mm.wrapBone];
       const Vec3 side = orthonormalRotationOf(pose.matrices[mm.sideBone]) * mm.sideLocal;
-      paths::jointWrapPath(O, I, wb.topRightCorner<3, 1>(), mm.radius, side, path);
+      double longWeight;
+      paths::jointWrapWays(O, I, wb.topRightCorner<3, 1>(), mm.radius, side, ways.path[0], ways.path[1], longWeight);
+      ways.weight[0] = 1.0 - longWeight, ways.weight[1] = longWeight;
       return;
     }
     case WrapType::Bone: {
@@ -193,14 +213,48 @@ Mat3 MuscleRig::Impl::startFrame(int m, const Pose& pose, const paths::ActionPat
   return boneCarriedFrame(pose.matrices[mm.originBone], mm.tangentLocal, mm.frameLocal, t, path.length < 1e-12);
 }
 
-double MuscleRig::Impl::endTwist(int m, const Pose& pose, const paths::ActionPath& path, const Mat3& F0) const {
+double MuscleRig::Impl::endTwist(int m, const Pose& pose, const Mat3& carried) const {
   const MuscleModel& mm = models[m];
-  if (!distributeTwist || path.length < 1e-12) return 0.0;
-  const Mat3 carried = paths::frameAt(path, F0, path.length);
   const Mat3 target = boneCarriedFrame(pose.matrices[mm.insertionBone], mm.endTangentLocal, mm.endFrameLocal,
                                        carried.col(1), false);
   const Vec3 a = carried.col(0), b = target.col(0);
   return std::atan2(a.cross(b).dot(carried.col(1)), a.dot(b));  // in (-pi, pi]: a roll past 180 degrees wraps
+}
+
+// A blend of two frames: (1 - w) a + w b by slerp.
+Mat3 slerpFrames(const Mat3& a, const Mat3& b, double w) {
+  return Eigen::Quaterniond(a).slerp(w, Eigen::Quaterniond(b)).normalized().toRotationMatrix();
+}
+
+void MuscleRig::Impl::stationsAt(int m, const Pose& pose, const PosedWays& ways, const int* st, int n, Mat3* F,
+                                 Vec3* P, Mat3* restEnd) const {
+  const MuscleModel& mm = models[m];
+  const int last = mm.stations - 1;
+  double sig[kMaxRigStations];
+  Mat3 Fk[kMaxRigStations];
+  Vec3 Pk[kMaxRigStations];
+  Mat3 ends[2];
+  const bool both = ways.weight[0] > 0.0 && ways.weight[1] > 0.0;
+  const bool twists = distributeTwist && !restEnd && ways.length() >= 1e-12;
+  for (int k = 0; k < 2; ++k) {
+    if (!(ways.weight[k] > 0.0)) continue;
+    const paths::ActionPath& path = ways.path[k];
+    Mat3* frames = k == 1 && both ? Fk : F;
+    Vec3* points = k == 1 && both ? Pk : P;
+    const Mat3 F0 = startFrame(m, pose, path);
+    for (int i = 0; i < n; ++i) sig[i] = path.length * st[i] / last;
+    paths::framesAt(path, F0, sig, n, frames, points);
+    if (twists || restEnd) ends[k] = paths::frameAt(path, F0, path.length);
+  }
+  const double w = ways.weight[1];
+  Mat3 carried = Mat3::Identity();
+  if (twists || restEnd) carried = both ? slerpFrames(ends[0], ends[1], w) : ends[w > 0.0 ? 1 : 0];
+  if (restEnd) *restEnd = carried;
+  if (both)
+    for (int i = 0; i < n; ++i) P[i] = (1.0 - w) * P[i] + w * Pk[i], F[i] = slerpFrames(F[i], Fk[i], w);
+  const double twist = twists ? endTwist(m, pose, carried) : 0.0;
+  if (twist != 0.0)
+    for (int i = 0; i < n; ++i) F[i] = Eigen::AngleAxisd(twist * mm.twistShare[st[i]], F[i].col(1)).toRotationMatrix() * F[i];
 }
 
 // ============================================================================
@@ -275,31 +329,31 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
     while (mm.stations > kMaxRigStations) --mm.jointStride, mm.stations = 2 * mm.joints * mm.jointStride + 1;
     impl->models.push_back(mm);
 
-    // Rest path and its start frame (X from the origin bone's X, made perpendicular to the tangent).
-    paths::ActionPath path;
-    impl->posedPath(static_cast<int>(m), rest, path);
+    // Rest path (the way round that weighs more) and its start frame (X from the origin bone's X, made perpendicular
+    // to the tangent).
+    PosedWays ways;
+    impl->posedWays(static_cast<int>(m), rest, ways);
+    const paths::ActionPath& path = ways.path[ways.weight[1] > ways.weight[0] ? 1 : 0];
     MuscleModel& mr = impl->models.back();
-    mr.restLength = path.length;
+    mr.restLength = ways.length();
     const Mat3 Rb = orthonormalRotationOf(rest.matrices[mr.originBone]);
     Vec3 p0, t0;
     paths::pointAt(path, 0.0, p0, t0);
     mr.tangentLocal = Rb.transpose() * t0;
     Mat3 F0 = frameFromY(t0, Rb.col(0));
     mr.frameLocal = Rb.transpose() * F0;
-    F0 = impl->startFrame(static_cast<int>(m), rest, path);
-    {
-      const Mat3 Fe = paths::frameAt(path, F0, path.length);
-      const Mat3 Ri = orthonormalRotationOf(rest.matrices[mr.insertionBone]);
-      mr.endTangentLocal = Ri.transpose() * Fe.col(1);
-      mr.endFrameLocal = Ri.transpose() * Fe;
-    }
 
+    // Rest stations (no end twist: zero on the rest path but for rounding) and the rest end frame.
     const int S = mr.stations;
-    std::vector<double> sig(S);
-    for (int j = 0; j < S; ++j) sig[j] = path.length * j / (S - 1);
+    std::vector<int> all(S);
+    for (int j = 0; j < S; ++j) all[j] = j;
     std::vector<Mat3> F(S);
     std::vector<Vec3> P(S);
-    paths::framesAt(path, F0, sig.data(), S, F.data(), P.data());
+    Mat3 Fe;
+    impl->stationsAt(static_cast<int>(m), rest, ways, all.data(), S, F.data(), P.data(), &Fe);
+    const Mat3 Ri = orthonormalRotationOf(rest.matrices[mr.insertionBone]);
+    mr.endTangentLocal = Ri.transpose() * Fe.col(1);
+    mr.endFrameLocal = Ri.transpose() * Fe;
 
     for (int j = 0; j < S; ++j) mr.stationCarry.push_back(carryOnChain(skeleton, rest, mr.originBone, mr.insertionBone, P[j]));
 
@@ -440,32 +494,24 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     fits = state.surfaces[m].rows() == im.models[m].surface.numVertices();
   if (!fits) throw InputError("MuscleRig::evaluate: state was not made by this rig's makeState()");
 
-  double sig[kMaxRigStations];
+  int st[kMaxRigStations];
   Mat3 F[kMaxRigStations];
   Vec3 P[kMaxRigStations];
   for (int m = 0; m < numMuscles(); ++m) {
     const MuscleModel& mm = im.models[m];
-    paths::ActionPath path;
-    im.posedPath(m, pose, path);
-    const Mat3 F0 = im.startFrame(m, pose, path);
-    const double twist = im.endTwist(m, pose, path, F0);
-    // Carried frames turned about their tangent by their station's share of the end twist (twistShare).
-    auto twisted = [&](int n, int first, int step) {  // frames of stations first, first + step, ...
-      if (twist == 0.0) return;
-      for (int i = 0; i < n; ++i)
-        F[i] = Eigen::AngleAxisd(twist * mm.twistShare[first + i * step], F[i].col(1)).toRotationMatrix() * F[i];
-    };
-    const double lambda = std::clamp(path.length / mm.restLength, kMinMuscleStretch, kMaxMuscleStretch);
+    PosedWays ways;
+    im.posedWays(m, pose, ways);
+    const double length = ways.length();
+    const double lambda = std::clamp(length / mm.restLength, kMinMuscleStretch, kMaxMuscleStretch);
     const double mu = joints::bulgeMu(mm.bulge, lambda);
-    state.length[m] = path.length;
+    state.length[m] = length;
     state.stretch[m] = lambda;
-    state.wrapped[m] = path.wrapped ? 1 : 0;
+    state.wrapped[m] = ways.wrapped() ? 1 : 0;
     const int S = mm.stations;
 
-    // Joints: frames at their stations only.
-    for (int k = 0; k < mm.joints; ++k) sig[k] = path.length * ((2 * k + 1) * mm.jointStride) / (S - 1);
-    paths::framesAt(path, F0, sig, mm.joints, F, P);
-    twisted(mm.joints, mm.jointStride, 2 * mm.jointStride);  // joint k on station (2k + 1) * jointStride
+    // Joints: frames at their stations only (joint k on station (2k + 1) * jointStride).
+    for (int k = 0; k < mm.joints; ++k) st[k] = (2 * k + 1) * mm.jointStride;
+    im.stationsAt(m, pose, ways, st, mm.joints, F, P);
     for (int k = 0; k < mm.joints; ++k) {
       const int j = (2 * k + 1) * mm.jointStride;
       const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);
@@ -483,9 +529,8 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     if (!withSurfaces) continue;
 
     // Surface: every station, then each vertex blends its two stations.
-    for (int j = 0; j < S; ++j) sig[j] = path.length * j / (S - 1);
-    paths::framesAt(path, F0, sig, S, F, P);
-    twisted(S, 0, 1);
+    for (int j = 0; j < S; ++j) st[j] = j;
+    im.stationsAt(m, pose, ways, st, S, F, P);
     if (!im.jointsSlide)  // the surface's stations move along their bones as the joints do
       for (int j = 0; j < S; ++j) P[j] = alongAsTheBone(mm.stationCarry[j], pose, P[j]);
     for (int j = 0; j < S; ++j) {

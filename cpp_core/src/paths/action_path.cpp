@@ -125,14 +125,53 @@ void straightPath(const Vec3& O, const Vec3& I, ActionPath& path) {
 
 // The widest bend (sine) within which a joint wrap's side draws its plane (jointWrapPath): 0.1, about 6 degrees.
 constexpr double kSideBand = 0.1;
-// The sine of the angle from the wrap plane's normal within which a joint wrap's side names no way round (a muscle
-// beside the joint): 0.1, about 6 degrees.
-constexpr double kBesideBand = 0.1;
+// The side's cosine with the outside of the bend (the long arc's bisector) from which a joint wrap takes the long way
+// alone: 0.5 (a side within 60 degrees of the outside); from 0 to it the two ways blend (jointWrapWays).
+constexpr double kWayRamp = 0.5;
 
-void jointWrapPath(const Vec3& O, const Vec3& I, const Vec3& J, double r, const Vec3& side, ActionPath& path) {
+namespace {
+
+// The wrap in the plane (ex, ey) round the sphere (J, rr) from O (angle 0) to I (angle aI), counter-clockwise for
+// dir = 1, clockwise for -1; straight when the line clears the sphere that way.
+void planarWrap(const Vec3& O, const Vec3& I, const Vec3& J, double rr, double dO, double dI, const Vec3& ex,
+                const Vec3& ey, double ccw, int dir, ActionPath& path) {
+  const double sweep = dir > 0 ? ccw : kTwoPi - ccw;
+  const double dOa = std::acos(rr / dO), dIa = std::acos(rr / dI);
+  const double span = sweep - dOa - dIa;
+  if (span <= 0) return straightPath(O, I, path);
+  const Vec3 n = ex.cross(ey);
+  const double a1 = dir * dOa;
+  const Vec3 start = std::cos(a1) * ex + std::sin(a1) * ey;
+  const double a2 = dir * (sweep - dIa);
+  const Vec3 T1 = J + rr * start;
+  const Vec3 T2 = J + rr * (std::cos(a2) * ex + std::sin(a2) * ey);
+  path.count = 3;
+  path.pieces[0] = linePiece(O, T1);
+  PathPiece& arc = path.pieces[1];
+  arc = PathPiece();
+  arc.kind = PieceKind::Arc;
+  arc.center = J;
+  arc.radius = rr;
+  arc.start = start;
+  arc.travel = (dir * n).cross(start);
+  arc.angle = span;
+  arc.length = rr * span;
+  path.pieces[2] = linePiece(T2, I);
+  finish(path, true);
+}
+
+}  // namespace
+
+void jointWrapWays(const Vec3& O, const Vec3& I, const Vec3& J, double r, const Vec3& side, ActionPath& shortWay,
+                   ActionPath& longWay, double& longWeight) {
+  longWeight = 0.0;
   const Vec3 o = O - J, i = I - J;
   const double dO = o.norm(), dI = i.norm();
-  if (!(r > 0) || dO < 1e-12 || dI < 1e-12) return straightPath(O, I, path);
+  if (!(r > 0) || dO < 1e-12 || dI < 1e-12) {
+    straightPath(O, I, shortWay);
+    longWay = shortWay;
+    return;
+  }
   const Vec3 ex = o / dO;
   const double rr = std::min({r, 0.999 * dO, 0.999 * dI});
   // The plane of the wrap holds O and J, and I where the path bends by more than beta, the sphere's angular
@@ -155,41 +194,32 @@ void jointWrapPath(const Vec3& O, const Vec3& I, const Vec3& J, double r, const 
   const double au = bend.dot(s), av = bend.dot(v);
   const double phi = 0.5 * std::atan2(2.0 * au * av, au * au + w - av * av);
   const Vec3 ey = std::cos(phi) * s + std::sin(phi) * v;
-  const Vec3 n = ex.cross(ey);
 
-  // In the plane: O at angle 0, I at angle aI; go round on the side of `side`: counter-clockwise when
-  // `side` lies on the side of the bisector of the counter-clockwise arc from O to I, else clockwise. A side within
-  // kBesideBand of the plane's normal (a muscle beside the joint, neither over nor in front of it) names no side: the
-  // short way (its in-plane part would be rounding, and the wrap would flip sides with it).
+  // In the plane: O at angle 0, I at angle aI. The long way goes round the outside of the bend; the side's cosine c
+  // with that way's bisector (its in-plane share included) names it: over kWayRamp it alone, below 0 (a side in the
+  // bend) or beside the joint (c near 0) the short way, between them both, smoothstepped. The weight is continuous in O, I and side wherever the plane is (where the
+  // two ways trade places, at a straight line through J, the side draws the plane, so it names one way clearly).
   const double aI = std::atan2(i.dot(ey), i.dot(ex));
   const double ccw = wrapAngle(aI);
-  const Vec3 s2(side.dot(ex), side.dot(ey), 0.0);
-  int dir;
-  if (!(s2.norm() > kBesideBand * side.norm())) dir = ccw <= kPi ? 1 : -1;
-  else dir = s2.x() * std::cos(0.5 * ccw) + s2.y() * std::sin(0.5 * ccw) >= 0 ? 1 : -1;  // side of the short arc's bisector
-  const double sweep = dir > 0 ? ccw : kTwoPi - ccw;
-  const double dOa = std::acos(rr / dO), dIa = std::acos(rr / dI);
-  const double span = sweep - dOa - dIa;
-  if (span <= 0) return straightPath(O, I, path);
+  const int longDir = ccw > kPi ? 1 : -1;  // the counter-clockwise way is the long one when it sweeps past pi
+  const double sideNorm = side.norm();
+  const double c = sideNorm > 0 ? longDir * (side.dot(ex) * std::cos(0.5 * ccw) + side.dot(ey) * std::sin(0.5 * ccw)) /
+                                      sideNorm
+                                : 0.0;
+  auto smoothstep = [](double x) {
+    const double t = std::clamp(x, 0.0, 1.0);
+    return std::isfinite(t) ? t * t * (3.0 - 2.0 * t) : 0.0;
+  };
+  longWeight = smoothstep(c / kWayRamp);
+  planarWrap(O, I, J, rr, dO, dI, ex, ey, ccw, -longDir, shortWay);
+  planarWrap(O, I, J, rr, dO, dI, ex, ey, ccw, longDir, longWay);
+}
 
-  const double a1 = dir * dOa;
-  const Vec3 start = std::cos(a1) * ex + std::sin(a1) * ey;
-  const double a2 = dir * (sweep - dIa);
-  const Vec3 T1 = J + rr * start;
-  const Vec3 T2 = J + rr * (std::cos(a2) * ex + std::sin(a2) * ey);
-  path.count = 3;
-  path.pieces[0] = linePiece(O, T1);
-  PathPiece& arc = path.pieces[1];
-  arc = PathPiece();
-  arc.kind = PieceKind::Arc;
-  arc.center = J;
-  arc.radius = rr;
-  arc.start = start;
-  arc.travel = (dir * n).cross(start);
-  arc.angle = span;
-  arc.length = rr * span;
-  path.pieces[2] = linePiece(T2, I);
-  finish(path, true);
+void jointWrapPath(const Vec3& O, const Vec3& I, const Vec3& J, double r, const Vec3& side, ActionPath& path) {
+  ActionPath shortWay, longWay;
+  double longWeight;
+  jointWrapWays(O, I, J, r, side, shortWay, longWay, longWeight);
+  path = longWeight > 0.5 ? longWay : shortWay;
 }
 
 void boneWrapPath(const Vec3& O, const Vec3& I, const Vec3& axisOrigin, const Vec3& e1, const Vec3& e2,

@@ -54,6 +54,14 @@ void straightPath(const Vec3& O, const Vec3& I, ActionPath& path);
 // draws the plane towards itself, and fixes it alone when O, I, J are collinear (action_path.cpp). Straight
 // when the line O-I clears the sphere on that side. When O or I lie inside the sphere the radius used shrinks
 // to 0.999 of their distance to J (documented fallback; the path stays continuous and finite).
+//
+// Both ways round the sphere in that plane: the short way (inside the bend) and the long way (round its outside), and
+// the long way's weight in [0, 1]: 1 where `side` lies within 60 degrees of the outside of the bend, 0 where it lies
+// in the bend or beside the joint (across the plane), smoothstepped between; continuous in O, I and side except where
+// the plane turns (above). A muscle joint blends the two ways by it (MuscleRig); jointWrapPath is the way that weighs
+// more (the short way on a tie).
+void jointWrapWays(const Vec3& O, const Vec3& I, const Vec3& J, double r, const Vec3& side, ActionPath& shortWay,
+                   ActionPath& longWay, double& longWeight);
 void jointWrapPath(const Vec3& O, const Vec3& I, const Vec3& J, double r, const Vec3& side, ActionPath& path);
 
 // Around the infinite cylinder through axisOrigin along unit `axis` (e1, e2 complete a right-handed
