@@ -153,7 +153,7 @@ def test_rig_does_not_jump_when_blender_rounds_the_pose_to_float32(core, seed):
     """Blender hands the rig float32 pose matrices. A parent bone turned while the limbs stay straight (the rest pose of
     the generated arm and bodies) brought a wrapped muscle's origin, joint centre and insertion into line, where its
     wrap plane swung round the joint with the rounding: the same pose in float64 and float32 moved the skin by up to
-    6.3 mm (arm) and 5.8 mm (biped 26). Now the muscle's side holds the plane there (paths::jointWrapPath)."""
+    6.3 mm (arm) and 5.8 mm (biped 26). Now the muscle's side holds the plane there (paths::jointWrapWays)."""
     character = core.make_synthetic_arm(seed=1)[0] if seed == 1 else core.make_synthetic_body(seed=seed)[0]
     muscles, _ = core.extract_muscles(character)
     rig = core.MuscleRig(character, muscles)

@@ -58,9 +58,9 @@ struct MuscleRigOptions {
 
 struct MuscleRigState {
   std::vector<Mat4> jointMatrices;   // #J posed joint matrices (mesh space)
-  std::vector<double> length;        // #M action-path length
+  std::vector<double> length;        // #M action-path length (a joint wrap's two ways: their weighted mean)
   std::vector<double> stretch;       // #M lambda = length / rest length
-  std::vector<char> wrapped;         // #M 1 when the path currently wraps (sphere or cylinder)
+  std::vector<char> wrapped;         // #M 1 when the path (of a joint wrap, the way that weighs more) wraps
   std::vector<Points> surfaces;      // #M posed surfaces (#V_m by 3), filled when requested
 };
 
@@ -82,7 +82,7 @@ class MuscleRig {
   const std::vector<int>& jointMuscle() const;          // #J muscle index of each joint
   const std::vector<int>& jointParentBone() const;      // #J skeleton bone (the muscle's origin bone)
   const std::vector<Mat4>& bindMatrices() const;        // #J rest joint matrices (rigid: scale 1)
-  const std::vector<double>& restLengths() const;       // #M rest action-path length
+  const std::vector<double>& restLengths() const;       // #M rest action-path length (as MuscleRigState::length)
   const std::vector<Muscle>& muscles() const;
   const Skeleton& skeleton() const;
   const Mesh& restSurface(int muscle) const;            // the surface evaluate() deforms (lofted if absent)

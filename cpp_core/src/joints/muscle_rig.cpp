@@ -99,6 +99,11 @@ Mat3 frameFromY(const Vec3& y, const Vec3& xHint) {
 
 bool finiteMatrix(const Mat4& m) { return m.allFinite(); }
 
+// A blend of two frames: (1 - w) a + w b by slerp.
+Mat3 slerpFrames(const Mat3& a, const Mat3& b, double w) {
+  return Eigen::Quaterniond(a).slerp(w, Eigen::Quaterniond(b)).normalized().toRotationMatrix();
+}
+
 }  // namespace
 
 // ============================================================================
@@ -142,6 +147,12 @@ struct PosedWays {
   bool wrapped() const { return path[weight[1] > weight[0] ? 1 : 0].wrapped; }
 };
 
+// Per pose, once: each weighing way's start frame and the blended path's end twist.
+struct PosedFrames {
+  Mat3 start[2];
+  double twist = 0.0;
+};
+
 struct MuscleRig::Impl {
   Skeleton skeleton;
   std::vector<Muscle> muscles;
@@ -158,11 +169,13 @@ struct MuscleRig::Impl {
   // Twist (radians about the end tangent) from the frame carried to the path's end to the frame the
   // insertion bone carries there; shared along the path by MuscleModel::twistShare.
   double endTwist(int m, const Pose& pose, const Mat3& carried) const;
+  // The start frames of the ways that weigh and the end twist of their blend (the frame carried to each way's end,
+  // blended by slerp). For the rest model (`restEnd`): no twist, and that carried end frame out.
+  void posedFrames(int m, const Pose& pose, const PosedWays& ways, PosedFrames& frames, Mat3* restEnd = nullptr) const;
   // Frames and points at stations st[0..n) (increasing), the ways blended by their weights (points linearly, frames
-  // by slerp), then turned by their share of the end twist of the blended path. For the rest model (`restEnd`): no
-  // twist, and the carried end frame out.
-  void stationsAt(int m, const Pose& pose, const PosedWays& ways, const int* st, int n, Mat3* F, Vec3* P,
-                  Mat3* restEnd = nullptr) const;
+  // by slerp), then turned by their share of the end twist.
+  void stationsAt(int m, const PosedWays& ways, const PosedFrames& frames, const int* st, int n, Mat3* F,
+                  Vec3* P) const;
   bool distributeTwist = true;
   bool twistFollowsBones = true;
   bool jointsSlide = true;
@@ -221,40 +234,43 @@ double MuscleRig::Impl::endTwist(int m, const Pose& pose, const Mat3& carried) c
   return std::atan2(a.cross(b).dot(carried.col(1)), a.dot(b));  // in (-pi, pi]: a roll past 180 degrees wraps
 }
 
-// A blend of two frames: (1 - w) a + w b by slerp.
-Mat3 slerpFrames(const Mat3& a, const Mat3& b, double w) {
-  return Eigen::Quaterniond(a).slerp(w, Eigen::Quaterniond(b)).normalized().toRotationMatrix();
+void MuscleRig::Impl::posedFrames(int m, const Pose& pose, const PosedWays& ways, PosedFrames& frames,
+                                  Mat3* restEnd) const {
+  const bool twists = distributeTwist && !restEnd && ways.length() >= 1e-12;
+  Mat3 ends[2];
+  for (int k = 0; k < 2; ++k) {
+    if (!(ways.weight[k] > 0.0)) continue;
+    frames.start[k] = startFrame(m, pose, ways.path[k]);
+    if (twists || restEnd) ends[k] = paths::frameAt(ways.path[k], frames.start[k], ways.path[k].length);
+  }
+  frames.twist = 0.0;
+  if (!twists && !restEnd) return;
+  const double w = ways.weight[1];
+  const Mat3 carried = w > 0.0 && w < 1.0 ? slerpFrames(ends[0], ends[1], w) : ends[w > 0.0 ? 1 : 0];
+  if (restEnd) *restEnd = carried;
+  if (twists) frames.twist = endTwist(m, pose, carried);
 }
 
-void MuscleRig::Impl::stationsAt(int m, const Pose& pose, const PosedWays& ways, const int* st, int n, Mat3* F,
-                                 Vec3* P, Mat3* restEnd) const {
+void MuscleRig::Impl::stationsAt(int m, const PosedWays& ways, const PosedFrames& frames, const int* st, int n,
+                                 Mat3* F, Vec3* P) const {
   const MuscleModel& mm = models[m];
   const int last = mm.stations - 1;
   double sig[kMaxRigStations];
   Mat3 Fk[kMaxRigStations];
   Vec3 Pk[kMaxRigStations];
-  Mat3 ends[2];
-  const bool both = ways.weight[0] > 0.0 && ways.weight[1] > 0.0;
-  const bool twists = distributeTwist && !restEnd && ways.length() >= 1e-12;
+  const double w = ways.weight[1];
+  const bool both = w > 0.0 && w < 1.0;
   for (int k = 0; k < 2; ++k) {
     if (!(ways.weight[k] > 0.0)) continue;
     const paths::ActionPath& path = ways.path[k];
-    Mat3* frames = k == 1 && both ? Fk : F;
-    Vec3* points = k == 1 && both ? Pk : P;
-    const Mat3 F0 = startFrame(m, pose, path);
     for (int i = 0; i < n; ++i) sig[i] = path.length * st[i] / last;
-    paths::framesAt(path, F0, sig, n, frames, points);
-    if (twists || restEnd) ends[k] = paths::frameAt(path, F0, path.length);
+    paths::framesAt(path, frames.start[k], sig, n, k == 1 && both ? Fk : F, k == 1 && both ? Pk : P);
   }
-  const double w = ways.weight[1];
-  Mat3 carried = Mat3::Identity();
-  if (twists || restEnd) carried = both ? slerpFrames(ends[0], ends[1], w) : ends[w > 0.0 ? 1 : 0];
-  if (restEnd) *restEnd = carried;
   if (both)
     for (int i = 0; i < n; ++i) P[i] = (1.0 - w) * P[i] + w * Pk[i], F[i] = slerpFrames(F[i], Fk[i], w);
-  const double twist = twists ? endTwist(m, pose, carried) : 0.0;
-  if (twist != 0.0)
-    for (int i = 0; i < n; ++i) F[i] = Eigen::AngleAxisd(twist * mm.twistShare[st[i]], F[i].col(1)).toRotationMatrix() * F[i];
+  if (frames.twist != 0.0)
+    for (int i = 0; i < n; ++i)
+      F[i] = Eigen::AngleAxisd(frames.twist * mm.twistShare[st[i]], F[i].col(1)).toRotationMatrix() * F[i];
 }
 
 // ============================================================================
@@ -350,7 +366,9 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
     std::vector<Mat3> F(S);
     std::vector<Vec3> P(S);
     Mat3 Fe;
-    impl->stationsAt(static_cast<int>(m), rest, ways, all.data(), S, F.data(), P.data(), &Fe);
+    PosedFrames restFrames;
+    impl->posedFrames(static_cast<int>(m), rest, ways, restFrames, &Fe);
+    impl->stationsAt(static_cast<int>(m), ways, restFrames, all.data(), S, F.data(), P.data());
     const Mat3 Ri = orthonormalRotationOf(rest.matrices[mr.insertionBone]);
     mr.endTangentLocal = Ri.transpose() * Fe.col(1);
     mr.endFrameLocal = Ri.transpose() * Fe;
@@ -501,6 +519,8 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     const MuscleModel& mm = im.models[m];
     PosedWays ways;
     im.posedWays(m, pose, ways);
+    PosedFrames frames;
+    im.posedFrames(m, pose, ways, frames);
     const double length = ways.length();
     const double lambda = std::clamp(length / mm.restLength, kMinMuscleStretch, kMaxMuscleStretch);
     const double mu = joints::bulgeMu(mm.bulge, lambda);
@@ -511,7 +531,7 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
 
     // Joints: frames at their stations only (joint k on station (2k + 1) * jointStride).
     for (int k = 0; k < mm.joints; ++k) st[k] = (2 * k + 1) * mm.jointStride;
-    im.stationsAt(m, pose, ways, st, mm.joints, F, P);
+    im.stationsAt(m, ways, frames, st, mm.joints, F, P);
     for (int k = 0; k < mm.joints; ++k) {
       const int j = (2 * k + 1) * mm.jointStride;
       const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);
@@ -530,7 +550,7 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
 
     // Surface: every station, then each vertex blends its two stations.
     for (int j = 0; j < S; ++j) st[j] = j;
-    im.stationsAt(m, pose, ways, st, S, F, P);
+    im.stationsAt(m, ways, frames, st, S, F, P);
     if (!im.jointsSlide)  // the surface's stations move along their bones as the joints do
       for (int j = 0; j < S; ++j) P[j] = alongAsTheBone(mm.stationCarry[j], pose, P[j]);
     for (int j = 0; j < S; ++j) {

@@ -197,15 +197,17 @@ void jointWrapWays(const Vec3& O, const Vec3& I, const Vec3& J, double r, const 
 
   // In the plane: O at angle 0, I at angle aI. The long way goes round the outside of the bend; the side's cosine c
   // with that way's bisector (its in-plane share included) weighs it: smoothstep(c / kWayRamp), so a side in the bend
-  // or beside the joint (c <= 0) takes the short way, one within 60 degrees of the outside the long way. The weight is
-  // continuous in O, I and side wherever the plane is (where the two ways trade places, at a straight line through J,
-  // the side draws the plane, so it names one way clearly). A NaN side weighs 0.
+  // or beside the joint (c <= 0) takes the short way, one within 60 degrees of the outside the long way. Where the two
+  // ways trade names (a straight line through J, where the side draws the plane and so names one way clearly) the
+  // weight flips between 0 and 1 with the same path either side. A NaN side weighs 0.
   const double aI = std::atan2(i.dot(ey), i.dot(ex));
   const double ccw = wrapAngle(aI);
   const int longDir = ccw > kPi ? 1 : -1;  // the counter-clockwise way is the long one when it sweeps past pi
   const double sideNorm = side.norm();
-  const double c = longDir * (side.dot(ex) * std::cos(0.5 * ccw) + side.dot(ey) * std::sin(0.5 * ccw)) / sideNorm;
-  const double t = sideNorm > 0 ? std::clamp(c / kWayRamp, 0.0, 1.0) : 0.0;
+  const double c = sideNorm > 0
+                       ? longDir * (side.dot(ex) * std::cos(0.5 * ccw) + side.dot(ey) * std::sin(0.5 * ccw)) / sideNorm
+                       : 0.0;
+  const double t = std::clamp(c / kWayRamp, 0.0, 1.0);
   longWeight = std::isfinite(t) ? t * t * (3.0 - 2.0 * t) : 0.0;
   planarWrap(O, I, J, rr, dO, dI, ex, ey, ccw, -longDir, shortWay);
   planarWrap(O, I, J, rr, dO, dI, ex, ey, ccw, longDir, longWay);

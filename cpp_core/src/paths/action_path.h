@@ -48,18 +48,19 @@ struct ActionPath {
 // Straight line O -> I.
 void straightPath(const Vec3& O, const Vec3& I, ActionPath& path);
 
-// Around a sphere (centre J, radius r) on the side of `side` (a direction from J; only its component in
-// the plane of O, I, J counts). The path is the geodesic, in the plane of O, I and J, where the bend at J is
-// larger than the sphere's angular radius r / min(|O - J|, |I - J|) (at most 0.1); within that band `side`
-// draws the plane towards itself, and fixes it alone when O, I, J are collinear (action_path.cpp). Straight
-// when the line O-I clears the sphere on that side. When O or I lie inside the sphere the radius used shrinks
-// to 0.999 of their distance to J (documented fallback; the path stays continuous and finite).
+// Around a sphere (centre J, radius r), both ways round: each is the geodesic in the plane of O, I and J where the
+// bend at J is larger than the sphere's angular radius r / min(|O - J|, |I - J|) (at most 0.1); within that band
+// `side` (a direction from J: the muscle's side of the joint) draws the plane towards itself, and fixes it alone when
+// O, I, J are collinear (action_path.cpp). Each way is straight when the line O-I clears the sphere that way. When O
+// or I lie inside the sphere the radius used shrinks to 0.999 of their distance to J (documented fallback; the path
+// stays continuous and finite).
 //
-// Both ways round the sphere in that plane: the short way (inside the bend) and the long way (round its outside), and
-// the long way's weight in [0, 1]: 1 where `side` lies within 60 degrees of the outside of the bend, 0 where it lies
-// in the bend or beside the joint (across the plane), smoothstepped between; continuous in O, I and side except where
-// the plane turns (above). A muscle joint blends the two ways by it (MuscleRig); jointWrapPath is the way that weighs
-// more (the short way on a tie).
+// shortWay goes round inside the bend, longWay round its outside; longWeight in [0, 1] is smoothstep(c / 0.5), c the
+// cosine of `side` with the outside of the bend (the long arc's bisector, over |side|: its part across the plane
+// counts as none): 1 for a side within 60 degrees of the outside, 0 for one in the bend or beside the joint. The two
+// ways blended by it (MuscleRig) move continuously with O, I and side except where the plane turns (above); the
+// weight itself flips between 0 and 1 where the ways trade names at a straight limb (the same path either side).
+// jointWrapPath is the way that weighs more (the short way on a tie).
 void jointWrapWays(const Vec3& O, const Vec3& I, const Vec3& J, double r, const Vec3& side, ActionPath& shortWay,
                    ActionPath& longWay, double& longWeight);
 void jointWrapPath(const Vec3& O, const Vec3& I, const Vec3& J, double r, const Vec3& side, ActionPath& path);
