@@ -123,7 +123,7 @@ void straightPath(const Vec3& O, const Vec3& I, ActionPath& path) {
   finish(path, false);
 }
 
-// The widest bend (sine) within which a joint wrap's side draws its plane (jointWrapPath): 0.1, about 6 degrees.
+// The widest bend (sine) within which a joint wrap's side draws its plane (jointWrapWays): 0.1, about 6 degrees.
 constexpr double kSideBand = 0.1;
 // The side's cosine with the outside of the bend (the long arc's bisector) from which a joint wrap takes the long way
 // alone: 0.5 (a side within 60 degrees of the outside); from 0 to it the two ways blend (jointWrapWays).
