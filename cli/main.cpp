@@ -100,7 +100,8 @@ void usage(std::ostream& out) {
          "          the linear and the dual-quaternion skin per vertex and adds the joints' volume keys, so joints\n"
          "          keep their volume (the add-on's Volume Blend: the shape keys and two Armature modifiers Bind\n"
          "          adds); --joints-slide off: along its bone a muscle joint moves as the bone does (the add-on's\n"
-         "          Joints Slide; on, the default: it rides its station of the action path); pose\n"
+         "          Joints Slide; on, the default: it rides its station of the action path, as far along its\n"
+         "          bone as the skin it carries follows without folding, from the weights); pose\n"
          "          files: {\"bones\": {name: {\"rotation_quaternion\": [w,x,y,z]}}} or {\"frames\": [...]}\n"
          "  simulate CHARACTER --pose SEQUENCE.json -o out.pc2 [--muscles M.json] [--jiggle] [--filter]\n"
          "          [--sculpt SCULPT.obj [--sculpt-frame F]] [--frames A-B] [--state-in S.json] [--state-out S.json]\n"
@@ -418,10 +419,15 @@ BoundSkin bindFromArgs(const Args& args, const std::string& command, const std::
   const Character& c = b.character;
   b.weights = c.weights;
   if (args.options.count("--muscles")) {
-    b.rig = std::make_unique<MuscleRig>(c.skeleton, readMusclesJson(args.options.at("--muscles")), rigOptions);
+    const std::vector<Muscle> muscles = readMusclesJson(args.options.at("--muscles"));
+    b.rig = std::make_unique<MuscleRig>(c.skeleton, muscles, rigOptions);
     HybridWeightOptions ho;
     ho.dominance = numberOption(args, "--dominance", ho.dominance);
     b.weights = computeHybridWeights(c.mesh, c.weights, *b.rig, ho);
+    if (rigOptions.jointsSlide) {  // each joint slides no further than the skin it carries follows unfolded (as Bind)
+      rigOptions.slideLimits = computeSlideLimits(c.mesh, b.weights, *b.rig);
+      b.rig = std::make_unique<MuscleRig>(c.skeleton, muscles, rigOptions);
+    }
     char dominance[32];
     std::snprintf(dominance, sizeof dominance, "%.17g", ho.dominance);
     b.settings["bind.dominance"] = dominance;

@@ -14,25 +14,36 @@ void bindDeformation(py::module_& m) {
                         "Muscles on a skeleton: built once, then evaluate(pose) gives every muscle joint's matrix "
                         "(mesh space; Y = path tangent; translation * rotation * diag(s, stretch, s)).")
       .def(py::init([](const Character& c, const std::vector<Muscle>& muscles, int jointsOverride,
-                       bool distributeTwist, bool twistFollowsBones, bool jointsSlide) {
+                       bool distributeTwist, bool twistFollowsBones, bool jointsSlide,
+                       const std::vector<std::array<double, 2>>& slideLimits) {
              MuscleRigOptions o;
              o.jointsOverride = jointsOverride;
              o.distributeTwist = distributeTwist;
              o.twistFollowsBones = twistFollowsBones;
              o.jointsSlide = jointsSlide;
+             o.slideLimits = slideLimits;
              return std::make_unique<PyMuscleRig>(c.skeleton, muscles, o);
            }),
            py::arg("character"), py::arg("muscles"), py::arg("joints_override") = 0,
            py::arg("distribute_twist") = MuscleRigOptions{}.distributeTwist,
            py::arg("twist_follows_bones") = MuscleRigOptions{}.twistFollowsBones,
            py::arg("joints_slide") = MuscleRigOptions{}.jointsSlide,
+           py::arg("slide_limits") = std::vector<std::array<double, 2>>{},
            "distribute_twist: the insertion bone's roll turns the joints about the path; twist_follows_bones: "
            "shared as the skeleton shares it (by each joint's rest distance to the two bones), else linearly in "
            "arc length; joints_slide: a joint's motion along its bone follows the muscle (default True; False: "
-           "the bone's, so a shortening belly does not carry the skin along the limb). Raises ValueError naming the "
+           "the bone's, so a shortening belly does not carry the skin along the limb); slide_limits: #J by 2 how far each "
+           "joint may slide along its bone towards its head and its tail (mesh units, 0 = no limit; "
+           "slide_limits(character, rig, weight_joints, weight_values) computes them for a bound skin). "
+           "Raises ValueError naming the "
            "muscle: unknown bones, origin = insertion, bad wrap radius, "
            "origin/insertion inside the wrap sphere or cylinder, joints outside [1, 64].")
       .def_property_readonly("joints_slide", &MuscleRig::jointsSlide)
+      .def_property_readonly("slide_limits", [](const PyMuscleRig& r) {
+        Eigen::MatrixXd out(r.numJoints(), 2);
+        for (int j = 0; j < r.numJoints(); ++j) out(j, 0) = r.slideLimits()[j][0], out(j, 1) = r.slideLimits()[j][1];
+        return out;
+      }, "#J by 2 how far each joint may slide along its bone, towards its head and its tail (0 = no limit)")
       .def_property_readonly("num_muscles", &MuscleRig::numMuscles)
       .def_property_readonly("num_joints", &MuscleRig::numJoints)
       .def_property_readonly("joint_names", &MuscleRig::jointNames)

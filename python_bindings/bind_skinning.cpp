@@ -351,6 +351,28 @@ void bindSkinning(py::module_& m) {
       "(0 = off); smoothing_distance > 0: the smoothing's diffusion distance in muscle radii instead of "
       "smoothing_iterations passes (body-relative: a coarse and a fine mesh of a body get the same weights); dominance 0 gives the skeleton weights.");
 
+  m.def(
+      "slide_limits",
+      [](const Character& c, const PyMuscleRig& rig, const IntArray& joints, const DoubleArray& weights, double margin) {
+        if (rig.skeleton().numBones() != c.skeleton.numBones())
+          throw InputError("slide_limits: the rig has " + std::to_string(rig.skeleton().numBones()) +
+                           " bones, the character " + std::to_string(c.skeleton.numBones()));
+        const SkinWeights w = weightsArg(joints, weights, c.mesh.numVertices());
+        std::vector<std::array<double, 2>> limits;
+        {
+          py::gil_scoped_release release;
+          limits = computeSlideLimits(c.mesh, w, rig, margin);
+        }
+        Eigen::MatrixXd out(limits.size(), 2);
+        for (size_t j = 0; j < limits.size(); ++j) out(j, 0) = limits[j][0], out(j, 1) = limits[j][1];
+        return out;
+      },
+      py::arg("character"), py::arg("rig"), py::arg("weight_joints"), py::arg("weight_values"),
+      py::arg("margin") = 1.0,
+      "#J by 2 slide limits (MuscleRig(..., slide_limits=)) for a bound skin (hybrid_weights' joints and values): "
+      "how far each muscle joint may slide along its bone, towards its head and its tail, before the skin it carries "
+      "folds where the muscle's weight fades (0 = no limit that way).");
+
   // ==========================================================================
   // Quality measures
   // ==========================================================================

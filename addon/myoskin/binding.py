@@ -339,6 +339,9 @@ def bind(context, skins, arm):
     if joints.shape[0] != character.num_vertices or weights.shape[0] != character.num_vertices:
         raise ValueError(f"Bind: {joints.shape[0]} weight rows for the {character.num_vertices} vertices of "
                          f"'{arm.name}''s character")
+    if rig.joints_slide:  # each joint slides along its bone no further than the skin it carries follows unfolded
+        rig = core.MuscleRig(character, muscles, joints_slide=True,
+                             slide_limits=np.asarray(core.slide_limits(character, rig, joints, weights)).tolist())
     # Volume blend: the shares from the skeleton weights of the combined character (before anything changes)
     volume_blend = bool(state.volume_blend) and state.deformer != 'ANCHORED'
     share = (np.asarray(core.compute_dqs_share(character, unblended_share=unblended_share(skins, arm)),
@@ -391,6 +394,7 @@ def bind(context, skins, arm):
         "surfaces": [surfaces.get(m.name, "") for m in muscles],
         "deformer": "anchored" if state.deformer == 'ANCHORED' else "joints", "core_skin_was": core_skin_was,
         "stuffing": stuffing, "volume_blend": volume_blend, "joints_slide": rig.joints_slide,
+        "slide_limits": np.asarray(rig.slide_limits).tolist(),
     }
     write_bind_record(arm, record)
     set_rig_skins(arm, skins)

@@ -48,6 +48,12 @@ def joints_slide(record):
     return bool(record.get("joints_slide", True))
 
 
+def slide_limits(record):
+    """The bind record's MuscleRig slide_limits (#J by 2, computed at Bind from the skin weights; a record written
+    before them has none: its joints slide unlimited, as they were bound)."""
+    return record.get("slide_limits") or []
+
+
 class LiveRig:
     """A MuscleRig built from an armature's bind record, plus index arrays into its pose bones."""
 
@@ -58,7 +64,8 @@ class LiveRig:
         self.joint_names = record["joint_names"]
         self.character = skeleton_character(record)
         muscles = [core.reattach_muscle(m) for m in core.muscles_from_json(record["muscles"])]
-        self.rig = core.MuscleRig(self.character, muscles, joints_slide=joints_slide(record))
+        self.rig = core.MuscleRig(self.character, muscles, joints_slide=joints_slide(record),
+                                  slide_limits=slide_limits(record))
         if list(self.rig.joint_names) != self.joint_names:
             raise ValueError(f"'{arm_obj.name}': the bind record's joints do not match its muscles: bind again")
         self.surface_names = record.get("surfaces", [])
@@ -135,7 +142,8 @@ def apply_settings_to_bound(arm_obj):
     record = binding.read_bind_record(arm_obj)
     try:
         muscles = [core.reattach_muscle(m) for m in muscle_io.state_to_core(arm_obj)]
-        rig = core.MuscleRig(skeleton_character(record), muscles, joints_slide=joints_slide(record))
+        rig = core.MuscleRig(skeleton_character(record), muscles, joints_slide=joints_slide(record),
+                             slide_limits=slide_limits(record))
     except ValueError:
         return False
     old = live_rig(arm_obj).rig

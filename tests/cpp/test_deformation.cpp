@@ -900,3 +900,60 @@ TEST(MuscleRig, JointsThatDoNotSlideMoveAlongTheirBoneAsTheBoneDoes) {
   EXPECT_GT(largestSlide, 1e-3 * size) << "sliding joints do move along their bone, so the check above can fail";
   EXPECT_LT(a.stretch[0], 0.99) << "the biceps shortens";
 }
+
+TEST(MuscleRig, SlideLimitsSaturateEachJointsSlideAlongItsBoneAndNothingElse) {
+  // With slideLimits each joint's offset o along its bone (from where the bone carries its rest point) becomes
+  // rho tanh(o / rho), rho the limit on o's side; its offset across the bone, frame and scale stay the free slide's.
+  const Skeleton& s = arm();
+  const Muscle mu = biceps();
+  const MuscleRig free(s, {mu});
+  const int J = free.numJoints();
+  ASSERT_GE(J, 2);
+  const double size = (tail("forearm") - head("upper_arm")).norm();
+  const Pose rest = restPose(s), pose = armPose(100 * kPi / 180);
+  MuscleRigState a = free.makeState();
+  free.evaluate(pose, a, true);
+  // Limits: half of each joint's free slide on its own side, none the other way.
+  MuscleRigOptions limited;
+  std::vector<double> freeSlide(J);
+  for (int k = 0; k < J; ++k) {
+    const Vec3 p = free.bindMatrices()[k].topRightCorner<3, 1>();
+    const Vec3 restAxis = free.slideAxes()[k];
+    auto distance = [&](const char* name) {  // the chain bone nearest to the joint at rest carries it
+      const Bone& bone = s.bones[s.find(name)];
+      const Vec3 d = bone.tail - bone.head;
+      const double t = std::clamp((p - bone.head).dot(d) / d.squaredNorm(), 0.0, 1.0);
+      return (bone.head + t * d - p).norm();
+    };
+    const int bone = s.find(distance("forearm") < distance("upper_arm") ? "forearm" : "upper_arm");
+    const Bone& carrier = s.bones[bone];
+    EXPECT_GT((carrier.tail - carrier.head).normalized().dot(restAxis), 1 - 1e-12) << "joint " << k;
+    const Mat4 carry = pose.matrices[bone] * rest.matrices[bone].inverse();
+    const Vec3 axis = carry.topLeftCorner<3, 3>() * restAxis;
+    freeSlide[k] = (a.jointMatrices[k].topRightCorner<3, 1>() - (carry * p.homogeneous()).head<3>()).dot(axis);
+    std::array<double, 2> rho = {0.0, 0.0};
+    rho[freeSlide[k] > 0 ? 1 : 0] = 0.5 * std::abs(freeSlide[k]);
+    limited.slideLimits.push_back(rho);
+  }
+  const MuscleRig capped(s, {mu}, limited);
+  MuscleRigState b = capped.makeState();
+  capped.evaluate(rest, b, true);
+  for (int k = 0; k < J; ++k) EXPECT_LT((b.jointMatrices[k] - capped.bindMatrices()[k]).norm(), 1e-12);  // rest exact
+  EXPECT_LT((b.surfaces[0] - capped.restSurface(0).vertices).cwiseAbs().maxCoeff(), 1e-12);
+  capped.evaluate(pose, b, true);
+  double largest = 0.0;
+  for (int k = 0; k < J; ++k) {
+    const double rho = 0.5 * std::abs(freeSlide[k]);
+    if (rho < 1e-9 * size) continue;
+    largest = std::max(largest, std::abs(freeSlide[k]));
+    const Vec3 d = b.jointMatrices[k].topRightCorner<3, 1>() - a.jointMatrices[k].topRightCorner<3, 1>();
+    const double expected = rho * std::tanh(freeSlide[k] / rho) - freeSlide[k];  // tanh(2) / 2 of the slide kept
+    EXPECT_NEAR(d.norm(), std::abs(expected), 1e-9 * size) << "joint " << k;
+    EXPECT_LT(std::abs(freeSlide[k] + expected), rho) << "joint " << k << ": never past its limit";
+    EXPECT_LT((b.jointMatrices[k].topLeftCorner<3, 3>() - a.jointMatrices[k].topLeftCorner<3, 3>()).norm(), 1e-12);
+  }
+  EXPECT_GT(largest, 1e-3 * size) << "the joints do slide, so the checks above can fail";
+  EXPECT_EQ(capped.slideLimits().size(), static_cast<size_t>(J));
+  limited.slideLimits.pop_back();
+  EXPECT_THROW(MuscleRig(s, {mu}, limited), InputError);
+}

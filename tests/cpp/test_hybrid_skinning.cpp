@@ -530,3 +530,50 @@ TEST(HybridWeights, BorderReliefLeavesSkinSharedWithOtherSegmentsToTheSkeleton) 
   bad.borderRelief = 1.5;
   EXPECT_THROW(computeHybridWeights(c.mesh, c.weights, rig, bad), InputError);
 }
+
+TEST(SlideLimits, AreTheDistanceOverWhichTheMusclesWeightRisesAlongTheBone) {
+  // A muscle weight rising linearly by wMax over a length l along joint 0's bone (and flat beyond) lets that joint
+  // slide towards the bone's head at most l / wMax before the skin folds (1 + o g = 0, g = wMax / l), and
+  // unlimited towards its tail (the weight never falls that way); joints that carry no skin get no limit.
+  const ArmRig& a = armRig();
+  const Character& c = a.character;
+  const MuscleRig rig(c.skeleton, a.muscles);
+  const int B = c.skeleton.numBones(), V = c.mesh.numVertices();
+  const Vec3 axis = rig.slideAxes()[0];
+  ASSERT_NEAR(axis.norm(), 1.0, 1e-12);
+  double lo = 1e300, hi = -1e300;
+  for (int v = 0; v < V; ++v) {
+    const double s = c.mesh.vertices.row(v).dot(axis);
+    lo = std::min(lo, s), hi = std::max(hi, s);
+  }
+  const double l = 0.3 * (hi - lo), s0 = lo + 0.3 * (hi - lo), wMax = 0.6;
+  SkinWeights w;
+  w.joints.resize(V, 2);
+  w.weights.resize(V, 2);
+  for (int v = 0; v < V; ++v) {
+    const double m = wMax * std::clamp((c.mesh.vertices.row(v).dot(axis) - s0) / l, 0.0, 1.0);
+    w.joints(v, 0) = 0, w.weights(v, 0) = 1.0 - m;
+    w.joints(v, 1) = B + 0, w.weights(v, 1) = m;
+  }
+  const std::vector<std::array<double, 2>> limits = computeSlideLimits(c.mesh, w, rig);
+  ASSERT_EQ(static_cast<int>(limits.size()), rig.numJoints());
+  std::printf("joint 0's slide limit towards the head %.4f m, l / wMax %.4f m\n", limits[0][0], l / wMax);
+  // A triangle's gradient along the axis is (wMax / l) |P axis|^2 <= wMax / l (P its plane's projection): equal for a
+  // triangle the axis lies in, which the arm's tube has nearly.
+  EXPECT_GE(limits[0][0], (1 - 1e-9) * l / wMax);
+  EXPECT_LT(limits[0][0], 1.05 * l / wMax);
+  EXPECT_EQ(limits[0][1], 0.0);
+  for (int j = 1; j < rig.numJoints(); ++j) EXPECT_EQ(limits[j][0] + limits[j][1], 0.0) << "joint " << j;
+  const std::vector<std::array<double, 2>> half = computeSlideLimits(c.mesh, w, rig, 0.5);
+  EXPECT_NEAR(half[0][0], 0.5 * limits[0][0], 1e-12 * l);
+  // Bad input: rows that are not the skin's, a margin that is not positive, a joint past the combined joints.
+  SkinWeights fewer = w;
+  fewer.joints.conservativeResize(V - 1, 2);
+  fewer.weights.conservativeResize(V - 1, 2);
+  EXPECT_THROW(computeSlideLimits(c.mesh, fewer, rig), InputError);
+  EXPECT_THROW(computeSlideLimits(c.mesh, w, rig, 0.0), InputError);
+  EXPECT_THROW(computeSlideLimits(c.mesh, w, rig, std::nan("")), InputError);
+  SkinWeights past = w;
+  past.joints(3, 1) = B + rig.numJoints();
+  EXPECT_THROW(computeSlideLimits(c.mesh, past, rig), InputError);
+}

@@ -11,6 +11,7 @@
 //   matrix_local is the joint's bind matrix (head = bind translation, tail along bind Y).
 // - the skinning transform of joint j is jointMatrices[j] * bindMatrices[j]^-1; at rest it is identity.
 #pragma once
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -50,6 +51,14 @@ struct MuscleRigOptions {
   // skinning (makehuman_muscular_male's elbow at 120 degrees with Preserve Volume: -20.3 % with true, -34.0 % with
   // false, LBS -45.5 %). The add-on's Joints Slide setting and the CLI's --joints-slide choose it.
   bool jointsSlide = true;
+  // With jointsSlide: how far each muscle joint may slide along its bone (#J by 2, the rig's joint order: towards
+  // the bone's head, towards its tail; mesh units; empty = no limit, an entry <= 0 or not finite = none that way).
+  // A joint's offset o along its bone from where the bone carries its rest point becomes rho tanh(o / rho), rho the
+  // limit on o's side: the same for small slides, never past rho. Skin a muscle carries with weight W slides W o
+  // along the limb, so where W falls by dW over ds in the direction of the slide the skin folds once o dW / ds
+  // reaches 1; computeSlideLimits (skinning.h) gives each joint the rho that keeps it below that on a bound skin.
+  // The surface's stations slide by their nearest joint's limits.
+  std::vector<std::array<double, 2>> slideLimits;
 };
 
 // ============================================================================
@@ -87,6 +96,9 @@ class MuscleRig {
   const Skeleton& skeleton() const;
   const Mesh& restSurface(int muscle) const;            // the surface evaluate() deforms (lofted if absent)
   bool jointsSlide() const;                             // MuscleRigOptions::jointsSlide it was built with
+  const std::vector<std::array<double, 2>>& slideLimits() const;  // #J by 2 MuscleRigOptions::slideLimits (0 = none)
+  const std::vector<Vec3>& slideAxes() const;           // #J rest unit axis (head -> tail) of the bone each joint
+                                                        // slides along (its origin-to-insertion chain's nearest)
 
   // A state sized for this rig (allocates once).
   MuscleRigState makeState() const;

@@ -96,6 +96,15 @@ struct HybridWeightOptions {
 SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWeights, const MuscleRig& rig,
                                  const HybridWeightOptions& options = {});
 
+// #J by 2 slide limits for the rig's joints on a bound skin (MuscleRigOptions::slideLimits: how far each joint may
+// slide along its bone towards the bone's head, towards its tail; 0 = no limit that way). Skin carried by a muscle
+// with total weight W (its joints' weights summed, `weights` over combined joints [0, #B + #J)) slides W o when its
+// joints slide o along the axis a, so a rest triangle whose gradient of W along a is g folds once 1 + o g < 0: the
+// limit towards the tail is 1 / max(-g), towards the head 1 / max(g), over the triangles where the joint has weight,
+// times `margin` (> 0). #V must match the skin, #J the rig. Throws InputError otherwise.
+std::vector<std::array<double, 2>> computeSlideLimits(const Mesh& skin, const SkinWeights& weights,
+                                                     const MuscleRig& rig, double margin = 1.0);
+
 // ============================================================================
 // Transforms
 // ============================================================================

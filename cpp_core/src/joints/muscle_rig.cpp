@@ -84,6 +84,16 @@ Vec3 alongAsTheBone(const BoneCarry& c, const Pose& pose, const Vec3& p) {
   return p - (p - transformPoint(B, c.restLocal)).dot(axis) * axis;
 }
 
+// p with its offset o along the carrying bone's posed axis from the carried rest point made rho tanh(o / rho), rho
+// the limit on o's side (rho[0] towards the bone's head, rho[1] towards its tail; 0 = none).
+Vec3 slideLimited(const BoneCarry& c, const Pose& pose, const Vec3& p, const std::array<double, 2>& rho) {
+  const Mat4& B = pose.matrices[c.bone];
+  const Vec3 axis = (orthonormalRotationOf(B) * c.axisLocal).normalized();
+  const double o = (p - transformPoint(B, c.restLocal)).dot(axis);
+  const double r = rho[o > 0 ? 1 : 0];
+  return r > 0 ? Vec3(p + (r * std::tanh(o / r) - o) * axis) : p;
+}
+
 // A frame with Y along `y` whose X is the component of `xHint` perpendicular to it.
 Mat3 frameFromY(const Vec3& y, const Vec3& xHint) {
   Vec3 Y = y.normalized();
@@ -129,6 +139,7 @@ struct MuscleModel {
   std::vector<Vec3> jointOffset;     // #joints rest root-curve point in its station's frame
   std::vector<BoneCarry> jointCarry;    // #joints the chain bone nearest to each joint at rest (jointsSlide = false)
   std::vector<BoneCarry> stationCarry;  // #stations the same for each rest station
+  std::vector<std::array<double, 2>> slideLimit;  // #joints MuscleRigOptions::slideLimits (0 = none)
   joints::BulgeProfile bulge;
   // Surface: each vertex blends stations j and j + 1 with weights (1 - alpha, alpha); local
   // coordinates in each station's rest frame.
@@ -179,6 +190,8 @@ struct MuscleRig::Impl {
   bool distributeTwist = true;
   bool twistFollowsBones = true;
   bool jointsSlide = true;
+  std::vector<std::array<double, 2>> slideLimits;  // #J (0 = none)
+  std::vector<Vec3> slideAxes;                      // #J rest axis of each joint's carrying bone
 };
 
 void MuscleRig::Impl::posedWays(int m, const Pose& pose, PosedWays& ways) const {
@@ -457,8 +470,23 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
       impl->jointMuscle.push_back(static_cast<int>(m));
       impl->jointParent.push_back(mr.originBone);
       mr.jointCarry.push_back(carryOnChain(skeleton, rest, mr.originBone, mr.insertionBone, c));
+      const Bone& carrier = skeleton.bones[mr.jointCarry.back().bone];
+      impl->slideAxes.push_back((carrier.tail - carrier.head).normalized());
     }
     impl->restLengths.push_back(mr.restLength);
+  }
+  const size_t J = impl->bind.size();
+  impl->slideLimits.assign(J, {0.0, 0.0});
+  if (!options.slideLimits.empty() && options.slideLimits.size() != J)
+    throw InputError("MuscleRig: slideLimits has " + std::to_string(options.slideLimits.size()) +
+                     " entries, the rig has " + std::to_string(J) + " joints");
+  for (size_t m = 0, j = 0; m < impl->models.size(); ++m) {
+    MuscleModel& mr = impl->models[m];
+    mr.slideLimit.assign(mr.joints, {0.0, 0.0});
+    for (int k = 0; k < mr.joints; ++k, ++j)
+      for (int side = 0; side < 2 && !options.slideLimits.empty(); ++side)
+        if (std::isfinite(options.slideLimits[j][side]) && options.slideLimits[j][side] > 0)
+          mr.slideLimit[k][side] = impl->slideLimits[j][side] = options.slideLimits[j][side];
   }
   impl_ = impl;
 }
@@ -479,6 +507,8 @@ const std::vector<double>& MuscleRig::restLengths() const { return impl_->restLe
 const std::vector<Muscle>& MuscleRig::muscles() const { return impl_->muscles; }
 const Skeleton& MuscleRig::skeleton() const { return impl_->skeleton; }
 bool MuscleRig::jointsSlide() const { return impl_->jointsSlide; }
+const std::vector<std::array<double, 2>>& MuscleRig::slideLimits() const { return impl_->slideLimits; }
+const std::vector<Vec3>& MuscleRig::slideAxes() const { return impl_->slideAxes; }
 const Mesh& MuscleRig::restSurface(int m) const { return impl_->models.at(m).surface; }
 
 MuscleRigState MuscleRig::makeState() const {
@@ -545,6 +575,8 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
       J.topRightCorner<3, 1>() = P[k] + RS * mm.jointOffset[k];
       if (!im.jointsSlide)  // the motion along the joint's bone is the bone's
         J.topRightCorner<3, 1>() = alongAsTheBone(mm.jointCarry[k], pose, J.topRightCorner<3, 1>());
+      else
+        J.topRightCorner<3, 1>() = slideLimited(mm.jointCarry[k], pose, J.topRightCorner<3, 1>(), mm.slideLimit[k]);
     }
     if (!withSurfaces) continue;
 
@@ -553,6 +585,10 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
     im.stationsAt(m, ways, frames, st, S, F, P);
     if (!im.jointsSlide)  // the surface's stations move along their bones as the joints do
       for (int j = 0; j < S; ++j) P[j] = alongAsTheBone(mm.stationCarry[j], pose, P[j]);
+    else
+      for (int j = 0; j < S; ++j) {
+        P[j] = slideLimited(mm.stationCarry[j], pose, P[j], mm.slideLimit[std::clamp(j / (2 * mm.jointStride), 0, mm.joints - 1)]);
+      }
     for (int j = 0; j < S; ++j) {
       const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);
       F[j].col(0) *= s;
