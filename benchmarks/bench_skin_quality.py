@@ -61,8 +61,10 @@ for name, relative, joints, facing in characters:
     ankles = {j[0]: (15, 30, 45, 60) for j in joints if j[0].startswith("ankle")}
     fixed = skin_quality.fold_sweep(core, character, muscles, joints, facing=facing, degrees_by_label=ankles,
                                     rig_options=dict(joints_slide=False))
+    free = skin_quality.fold_sweep(core, character, muscles, joints, facing=facing, degrees_by_label=ankles,
+                                   bound=skin_quality.bind_skin(core, character, muscles, slide_limit=False))
     sweeps.append((name, skin_quality.fold_sweep(core, character, muscles, joints, facing=facing,
-                                                 degrees_by_label=ankles, bound=bound), fixed))
+                                                 degrees_by_label=ankles, bound=bound), fixed, free))
     jumps.append((name, skin_quality.joint_jumps(core, character, bound[0], joints, report["limb_radius"],
                                                  facing=facing)))
 print()
@@ -88,7 +90,7 @@ print("Bend sweep (30-150 degrees by 15, ankles 15-60): crossing band triangle p
       "in brackets the crumples among them (new pairs whose triangles' centroids lie within "
       f"{skin_quality.CRUMPLE_RADII} limb radii at rest), '!' where "
       "Myoskin folds more than LBS, and Myoskin's band change")
-for name, sweep, _fixed in sweeps:
+for name, sweep, _fixed, _free in sweeps:
     for joint in sweep:
         cells = " ".join(f"{r['degrees']}:{r['crossings_lbs']}({r['crumples_lbs']})/{r['crossings_myoskin_vk']}"
                          f"({r['crumples_myoskin_vk']}){'!' if r['crossings_myoskin_vk'] > r['crossings_lbs'] else ''} "
@@ -98,12 +100,13 @@ for name, sweep, _fixed in sweeps:
 
 
 print()
-print("Joints Slide off (MuscleRig joints_slide=False, the rig setting) against on (the default), the same sweep: crumples "
-      "and the (joint, angle) cases folding more than LBS, summed over each character's joints")
-for name, sweep, fixed in sweeps:
-    print(f"{name[:24]:24s} crumples LBS {total(sweep, 'crumples_lbs')}, on {total(sweep, 'crumples_myoskin_vk')}, off "
-          f"{total(fixed, 'crumples_myoskin_vk')}; cases over LBS on {over_lbs(sweep)}, off {over_lbs(fixed)} of "
-          f"{sum(len(joint['rows']) for joint in sweep)}")
+print("Joints Slide on (the default, with Bind's slide limits), on without the limits (free: bind_skin(slide_limit=False)) "
+      "and off (MuscleRig joints_slide=False), the same sweep: crumples and the (joint, angle) cases folding more than "
+      "LBS, summed over each character's joints")
+for name, sweep, fixed, free in sweeps:
+    print(f"{name[:24]:24s} crumples LBS {total(sweep, 'crumples_lbs')}, on {total(sweep, 'crumples_myoskin_vk')}, free "
+          f"{total(free, 'crumples_myoskin_vk')}, off {total(fixed, 'crumples_myoskin_vk')}; cases over LBS on "
+          f"{over_lbs(sweep)}, free {over_lbs(free)}, off {over_lbs(fixed)} of {sum(len(joint['rows']) for joint in sweep)}")
 print()
 print("Muscle joint jumps: each joint bent 0-150 degrees in 0.5-degree steps with 0, 7 and 23 degrees of twist; a jump is a "
       "muscle joint moving over 0.05 limb radii and 8 times its median step (a wrap changing its way round)")

@@ -32,7 +32,8 @@ undo, and is readable without the add-on (ID properties and a Text datablock nee
                                           Armature modifier with Preserve Volume + Multi Modifier after the first,
                                           which stays linear over the group myoskin_linear); a bound rig follows
                                           a switch at once; Unbind removes all of it
-        .joints_slide                     Bind builds the MuscleRig with joints_slide (the bind record keeps it;
+        .joints_slide                     Bind builds the MuscleRig with joints_slide (the bind record keeps it,
+                                          and with it on the joints' slide limits Bind computes from the weights;
                                           a switch on a bound rig binds again with Auto Rebind, else marks it
                                           edited)
         .bind_text                        Text datablock "<armature>.bind.json", the bind record: skeleton
@@ -196,7 +197,9 @@ class MyoskinRigState(bpy.types.PropertyGroup):
     joints_slide: BoolProperty(
         name="Joints Slide", default=True, update=_joints_slide_changed,
         description="Muscle joints ride their stations of the action path, so a shortening muscle carries the skin "
-                    "over its belly along the limb (the paper). Off: along its bone a joint moves as the bone does; "
+                    "over its belly along the limb (the paper), each no further along its bone than the skin it "
+                    "carries follows without folding (Bind measures that from the weights, where they fade). Off: "
+                    "along its bone a joint moves as the bone does; "
                     "the muscle still lifts, turns and bulges it. On some bodies off folds the skin on itself less "
                     "at mid-angle elbows under the Volume Blend, but linear and Preserve Volume skinning lose the "
                     "elbow's crease. A bound rig binds again (Auto Rebind; else Bind again)")

@@ -105,6 +105,13 @@ def test_cli_bad_input(core, arm_files):
     assert r.returncode == 1 and "--skin-solve needs --muscles" in r.stderr
 
 
+def bound_rig(core, character, muscles):
+    """The rig, hybrid weight joints and values the CLI's simulate binds with: sliding joints with their slide limits."""
+    rig = core.MuscleRig(character, muscles)
+    joints, weights = core.hybrid_weights(character, rig)
+    return core.MuscleRig(character, muscles, slide_limits=core.slide_limits(character, rig, joints, weights)), joints, weights
+
+
 def test_skin_solve_in_the_simulation_cli_and_python(core, arm_files):
     """simulate --skin-solve: rest frames stay the skin, bent frames are solved (skin outside the posed muscles
     where it was outside at rest), chunks still stitch, and Python's simulate(skin_solve=...) gives the same."""
@@ -123,8 +130,7 @@ def test_skin_solve_in_the_simulation_cli_and_python(core, arm_files):
     simulate(d, d / "s_b.pc2", "--jiggle", "--skin-solve", "--frames", "13-24", "--state-in", str(d / "ss12.json"))
     stitched = np.concatenate([core.read_pc2(str(d / n))["frames"] for n in ("s_a.pc2", "s_b.pc2")])
     assert np.array_equal(stitched, solved)
-    rig = core.MuscleRig(character, core.read_muscles(str(d / "muscles.json")))
-    joints, weights = core.hybrid_weights(character, rig)
+    rig, joints, weights = bound_rig(core, character, core.read_muscles(str(d / "muscles.json")))
     skinner = core.Skinner(character.vertices, joints, weights, character.num_bones + len(rig.joint_names))
     goal_weights = core.default_goal_weights(joints, weights, character.num_bones)
     frames = core.simulate(character, skinner, swing_poses(core, character), rig, 24.0, 1, jiggle=True,
@@ -135,8 +141,7 @@ def test_skin_solve_in_the_simulation_cli_and_python(core, arm_files):
 def test_python_simulate_equals_the_cli_and_sculpt(core, arm_files):
     d = arm_files
     character = core.load_character(str(d / "arm.obj"))
-    rig = core.MuscleRig(character, core.read_muscles(str(d / "muscles.json")))
-    joints, weights = core.hybrid_weights(character, rig)
+    rig, joints, weights = bound_rig(core, character, core.read_muscles(str(d / "muscles.json")))
     skinner = core.Skinner(character.vertices, joints, weights, character.num_bones + len(rig.joint_names))
     poses = swing_poses(core, character)
     frames = core.simulate(character, skinner, poses, rig, 24.0, 1, jiggle=True, filter=True)

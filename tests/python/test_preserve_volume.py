@@ -150,6 +150,8 @@ def test_cli_deform_preserve_volume_matches_the_module(core, tmp_path):
         if muscles:
             rig = core.MuscleRig(character, core.read_muscles(str(tmp_path / "m.json")))
             joints, weights = core.hybrid_weights(character, rig)
+            rig = core.MuscleRig(character, rig.muscles,  # Bind's slide limits, from the weights
+                                 slide_limits=core.slide_limits(character, rig, joints, weights))
             t = core.skinning_transforms(character, pose, rig, rig.evaluate(pose)["joint_matrices"])
             rest = core.combined_rest_matrices(character, rig)
         else:

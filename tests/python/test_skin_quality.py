@@ -168,24 +168,62 @@ def test_bend_sweep_agrees_with_the_measure_and_makehumans_knee_and_shoulder_nev
 
 
 @pytest.mark.figures
-def test_sliding_muscle_joints_crumple_an_elbow_that_lbs_does_not_and_joints_that_do_not_slide_crumple_less(core):
+def test_sliding_muscle_joints_crumple_an_elbow_that_lbs_does_not_unless_their_slide_is_limited(core):
     """Generated biped 11's elbow at 60 and 90 degrees (the bend sweep's diagnosis, README "Joints that do not slide"):
-    LBS crumples nothing there; Bind's skin with the default sliding muscle joints crumples (the upper arm's muscles
-    carry skin towards the shoulder: measured 12 and 31 pairs), with joints_slide=False far less (7 and 7)."""
+    LBS crumples nothing there; Bind's skin with freely sliding muscle joints crumples (the upper arm's muscles carry
+    skin towards the shoulder: measured 12 and 31 pairs), with joints_slide=False far less (7 and 7), and so with the
+    slide limits Bind gives sliding joints (core.slide_limits: no further than the skin they carry follows unfolded)."""
     character, _truth = core.make_synthetic_body(seed=11)
     muscles, _ = core.extract_muscles(character)
     elbow = [j for j in skin_quality.SYNTHETIC_BODY_JOINTS if j[0] == "elbow flexion"]
     crumpled = {}
-    for slide in (True, False):
+    for name, rig_options, limit in (("free", {}, False), ("limited", {}, True), ("off", dict(joints_slide=False), True)):
+        bound = skin_quality.bind_skin(core, character, muscles, rig_options=rig_options, slide_limit=limit)
+        assert (np.asarray(bound[0].slide_limits) > 0).any() == (name == "limited"), name
         (sweep,) = skin_quality.fold_sweep(core, character, muscles, elbow, facing=(0.0, -1.0, 0.0), degrees=(60, 90),
-                                           rig_options=dict(joints_slide=slide))
+                                           bound=bound)
         assert [r["degrees"] for r in sweep["rows"]] == [60, 90]
         assert all(r["crumples_lbs"] == 0 for r in sweep["rows"])
-        crumpled[slide] = [r["crumples_myoskin_vk"] for r in sweep["rows"]]
-    print(f"biped 11's elbow at 60 / 90 degrees, crumpled pairs: sliding joints {crumpled[True]}, not sliding "
-          f"{crumpled[False]}")
-    assert crumpled[True][1] >= 10
-    assert sum(crumpled[False]) <= 0.5 * sum(crumpled[True])
+        crumpled[name] = [r["crumples_myoskin_vk"] for r in sweep["rows"]]
+    print(f"biped 11's elbow at 60 / 90 degrees, crumpled pairs: {crumpled}")
+    assert crumpled["free"][1] >= 10
+    assert sum(crumpled["off"]) <= 0.5 * sum(crumpled["free"])
+    assert sum(crumpled["limited"]) <= 0.5 * sum(crumpled["free"])
+
+
+@pytest.mark.figures
+def test_slide_limits_take_out_most_crumples_of_held_out_bipeds_and_leave_makehuman(core):
+    """The slide limits (core.slide_limits, on in Bind) on generated bipeds nothing was tuned on: over the elbow and
+    knee sweeps (30-150 degrees) the crumples (skin folding on itself) fall by more than half, and no more (joint,
+    angle) cases fold more than LBS than with free joints. On makehuman_muscular_male, whose coarse skin's muscle
+    weights fade over more than a limb radius, the limits are at least half a limb radius and its elbow's band and
+    biceps bulge stay within 0.5 point and 0.005 limb radii of the free joints'."""
+    knee_elbow = [j for j in skin_quality.SYNTHETIC_BODY_JOINTS if j[0] in ("elbow flexion", "knee flexion")]
+    totals = {False: [0, 0], True: [0, 0]}
+    for seed in (20, 22, 25):
+        character, _truth = core.make_synthetic_body(seed=seed)
+        muscles, _ = core.extract_muscles(character)
+        for limit in (False, True):
+            bound = skin_quality.bind_skin(core, character, muscles, slide_limit=limit)
+            sweep = skin_quality.fold_sweep(core, character, muscles, knee_elbow, facing=(0.0, -1.0, 0.0), bound=bound)
+            assert len(sweep) == 2
+            rows = [r for joint in sweep for r in joint["rows"]]
+            totals[limit][0] += sum(r["crumples_myoskin_vk"] for r in rows)
+            totals[limit][1] += sum(r["crossings_myoskin_vk"] > r["crossings_lbs"] for r in rows)
+    print(f"held-out bipeds 20, 22, 25, elbow and knee sweeps: crumples free {totals[False][0]}, limited "
+          f"{totals[True][0]}; cases folding more than LBS free {totals[False][1]}, limited {totals[True][1]}")
+    assert totals[True][0] <= 0.5 * totals[False][0]
+    assert totals[True][1] <= totals[False][1]
+    character = core.load_character(shared(MUSCULAR), require_weights=True)
+    muscles, report = core.extract_muscles(character)
+    elbow = [j for j in skin_quality.MAKEHUMAN_JOINTS if j[0] == "elbow flexion"]
+    free, limited = (skin_quality.measure(core, character, muscles, elbow, bound=skin_quality.bind_skin(
+        core, character, muscles, slide_limit=limit))[0] for limit in (False, True))
+    limits = np.asarray(skin_quality.bind_skin(core, character, muscles)[0].slide_limits)
+    assert (limits > 0).any()
+    assert limits[limits > 0].min() >= 0.5 * report["limb_radius"]
+    assert abs(limited["myoskin_pv"] - free["myoskin_pv"]) <= 0.005
+    assert abs(limited["bulge"] - free["bulge"]) <= 0.005 * report["limb_radius"]
 
 
 def test_volume_keys_keep_makehumans_joints(makehuman):
@@ -219,12 +257,12 @@ def test_volume_keys_keep_held_out_generated_bipeds_joints(core):
     """Issue 14 item 3 on the generated bipeds nothing was tuned on (seeds 20-27): elbow and knee 120, shoulder
     abduction 90 degrees (their hips lie deeper inside the pelvis than 1.5 body limb radii from any skin: the band
     measure has nothing to measure there). Measured: 21 of the 24 joints meet the target; every joint of bipeds 20, 21,
-    24, 26 and 27 does (21's shoulder -22.5 %, LBS -51.1, DQS -27.8; 27's elbow +0.1 % with LBS's 158 crossings, once
+    22, 26 and 27 does (22's elbow since the slide limits: 210 -> 169 crossing pairs, LBS 191; they cost 24's elbow, +0.3 %
+    against DQS's -0.2 %) (21's shoulder -22.5 %, LBS -51.1, DQS -27.8; 27's elbow +0.1 % with LBS's 158 crossings, once
     its elbow bends forward: `test_an_a_pose_arm_bends_forward_and_a_leg_backward`; 27's knee +0.9 -> -0.0 % and 25's
     +1.3 -> -0.0 % since a key also takes back volume a band gains; 24's elbow -0.9 -> -0.1 % and knee +0.4 -> +0.0 %
     since a key may move the skin away from the joint and is chosen by the volume it keeps). The misses: the shoulders
-    of 23 (-29.5 %, half of LBS 28.2) and 25 (the blend alone folds more than LBS) and 22's elbow (the blend alone folds
-    more than LBS)."""
+    of 23 (-29.5 %, half of LBS 28.2) and 25 (the blend alone folds more than LBS) and 24's elbow."""
     met, per_seed = 0, {}
     for seed in range(20, 28):
         character, _truth = core.make_synthetic_body(seed=seed)
@@ -235,7 +273,7 @@ def test_volume_keys_keep_held_out_generated_bipeds_joints(core):
     print(f"held-out bipeds: {met} of 24 joints meet the target; per seed {per_seed}")
     assert len(per_seed) == 8
     assert met >= 21
-    assert per_seed[20] == per_seed[21] == per_seed[24] == per_seed[26] == per_seed[27] == 3 and per_seed[25] >= 2
+    assert per_seed[20] == per_seed[21] == per_seed[22] == per_seed[26] == per_seed[27] == 3 and per_seed[25] >= 2
 
 
 @pytest.mark.figures

@@ -255,6 +255,9 @@ def test_cli_deform_with_muscles_matches_the_module(core, tmp_path):
     frames = core.read_pc2(str(tmp_path / "out.pc2"))["frames"]
     rig = core.MuscleRig(character, core.read_muscles(str(tmp_path / "m.json")))
     joints, weights = core.hybrid_weights(character, rig)
+    limits = core.slide_limits(character, rig, joints, weights)  # Bind's: how far each joint may slide
+    assert (np.asarray(limits) > 0).any()
+    rig = core.MuscleRig(character, rig.muscles, slide_limits=limits)
     pose = bend(core, character, 140, axis=(1, 0, 0))
     transforms = core.skinning_transforms(character, pose, rig, rig.evaluate(pose)["joint_matrices"])
     expected = core.Skinner(character.vertices, joints, weights, transforms.shape[0]).deform(transforms)

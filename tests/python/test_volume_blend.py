@@ -101,6 +101,7 @@ def test_cli_deform_volume_blend_matches_the_module(core, tmp_path):
     pose = bend(core, character, 120)
     rig = core.MuscleRig(character, core.read_muscles(str(tmp_path / "m.json")))
     joints, weights = core.hybrid_weights(character, rig)
+    rig = core.MuscleRig(character, rig.muscles, slide_limits=core.slide_limits(character, rig, joints, weights))
     t = core.skinning_transforms(character, pose, rig, rig.evaluate(pose)["joint_matrices"])
     rest = core.combined_rest_matrices(character, rig)
     share = core.compute_dqs_share(character)
@@ -372,7 +373,8 @@ def test_an_a_pose_arm_bends_forward_and_a_leg_backward(core, seed):
     only on a leg, a limb whose skin reaches the ground: bipeds 24, 26 and 27, whose shoulder to upper arm is a twist
     split, used to get the knee's backward bend at the elbow (20 at the shoulder and its right elbow), and Bind's elbow
     key, fitted on that bend, added volume to biped 24's elbow flexed forward: +2.5 % at 120 degrees where the blend
-    alone keeps -0.4 % (then no key: -0.4 %; since keys may move the skin away from the joint, -0.1 %)."""
+    alone keeps -0.4 % (then no key: -0.4 %; since keys may move the skin away from the joint, -0.1 %; with the slide
+    limits +0.3 %)."""
     character, _truth = core.make_synthetic_body(seed=seed)
     swings = flexion_swings(core, character, (0.0, -1.0, 0.0))
     arm = [bone for bone in ("upper_arm.L", "forearm.L", "upper_arm.R", "forearm.R") if bone in swings]
@@ -390,7 +392,8 @@ def test_an_a_pose_arm_bends_forward_and_a_leg_backward(core, seed):
         assert abs(row["myoskin_vk"]) <= 0.01, row["myoskin_vk"]
         # the key leaves the band no further from rest than the blend alone (the backward-fitted key added 2.9 points)
         assert abs(row["myoskin_vk"]) <= abs(row["myoskin_vb"]) + 1e-3, (row["myoskin_vk"], row["myoskin_vb"])
-        assert row["myoskin_vk"] <= 0.002, row["myoskin_vk"]
+        # (+0.3 % since the slide limits hold the joints' slide that drew the crease's skin in: DQS -0.2 %)
+        assert row["myoskin_vk"] <= 0.005, row["myoskin_vk"]
 
 
 def test_a_horses_legs_alternate(core):
