@@ -73,6 +73,7 @@ def run_case(name):
     t = time.perf_counter()
     rig = core.MuscleRig(character, muscles)
     joints, weights = core.hybrid_weights(character, rig)
+    rig = core.MuscleRig(character, muscles, slide_limits=core.slide_limits(character, rig, joints, weights))  # as Bind
     bind = time.perf_counter() - t
     skinner = core.Skinner(character.vertices, joints, weights, character.num_bones + rig.num_joints)
     rest = np.asarray(character.bone_rest)

@@ -371,7 +371,8 @@ void bindSkinning(py::module_& m) {
       py::arg("margin") = 1.0,
       "#J by 2 slide limits (MuscleRig(..., slide_limits=)) for a bound skin (hybrid_weights' joints and values): "
       "how far each muscle joint may slide along its bone, towards its head and its tail, before the skin it carries "
-      "folds where the muscle's weight fades (0 = no limit that way).");
+      "folds where the muscle's weight fades (0 = no limit that way); margin: times this (1 = where it would fold). "
+      "A rig made with joints_slide=False ignores them.");
 
   // ==========================================================================
   // Quality measures

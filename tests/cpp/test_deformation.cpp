@@ -692,16 +692,20 @@ TEST(MuscleRig, BulgeFactorConcentratesChangeInTheBelly) {
 }
 
 TEST(MuscleRig, EvaluateAllocatesNothingAndIsDeterministic) {
-  for (bool slide : {true, false}) {
+  for (int mode : {0, 1, 2}) {  // sliding joints, joints that do not slide, sliding joints with slide limits
     MuscleRigOptions o;
-    o.jointsSlide = slide;
+    o.jointsSlide = mode != 1;
+    if (mode == 2) {
+      const int J = MuscleRig(arm(), {biceps(), tricepsWrap(), forearmWrap()}).numJoints();
+      for (int j = 0; j < J; ++j) o.slideLimits.push_back({0.005 * (1 + j % 3), j % 4 == 0 ? 0.0 : 0.01});
+    }
     const MuscleRig rig(arm(), {biceps(), tricepsWrap(), forearmWrap()}, o);
     MuscleRigState a = rig.makeState(), b = rig.makeState();
     const Pose pose = armPose(2.0, 0.8);
     rig.evaluate(pose, a, true);
     const long before = gAllocations.load();
     rig.evaluate(pose, b, true);
-    EXPECT_EQ(gAllocations.load() - before, 0) << "jointsSlide " << slide;
+    EXPECT_EQ(gAllocations.load() - before, 0) << "mode " << mode;
     for (int j = 0; j < rig.numJoints(); ++j) EXPECT_EQ(a.jointMatrices[j], b.jointMatrices[j]);
     for (int m = 0; m < 3; ++m) EXPECT_EQ(a.surfaces[m], b.surfaces[m]);
   }

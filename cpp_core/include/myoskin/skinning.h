@@ -101,7 +101,8 @@ SkinWeights computeHybridWeights(const Mesh& skin, const SkinWeights& skeletonWe
 // with total weight W (its joints' weights summed, `weights` over combined joints [0, #B + #J)) slides W o when its
 // joints slide o along the axis a, so a rest triangle whose gradient of W along a is g folds once 1 + o g < 0: the
 // limit towards the tail is 1 / max(-g), towards the head 1 / max(g), over the triangles where the joint has weight,
-// times `margin` (> 0). #V must match the skin, #J the rig. Throws InputError otherwise.
+// times `margin` (> 0); slivers (sin^2 of their angle under 1e-6) are skipped. Throws InputError when the weights'
+// rows are not the skin's vertices, a joint index lies past #B + #J, or the margin is not positive.
 std::vector<std::array<double, 2>> computeSlideLimits(const Mesh& skin, const SkinWeights& weights,
                                                      const MuscleRig& rig, double margin = 1.0);
 

@@ -60,8 +60,8 @@ int nearestChainBone(const Skeleton& skeleton, int a, int b, const Vec3& p) {
   return best;
 }
 
-// A rest point carried by a bone (MuscleRigOptions::jointsSlide = false): the bone, the point and the bone's unit axis
-// in the bone's rest frame.
+// A rest point carried by a bone (MuscleRigOptions::jointsSlide = false, and the slide limits): the bone, the point and
+// the bone's unit axis in the bone's rest frame.
 struct BoneCarry {
   int bone = 0;
   Vec3 restLocal = Vec3::Zero(), axisLocal = Vec3::UnitY();
@@ -137,9 +137,11 @@ struct MuscleModel {
   int stations = 0, jointStride = 0, joints = 0;  // joint k sits on station (2k + 1) * jointStride
   std::vector<double> twistShare;    // #stations: share of the end twist each station turns by
   std::vector<Vec3> jointOffset;     // #joints rest root-curve point in its station's frame
-  std::vector<BoneCarry> jointCarry;    // #joints the chain bone nearest to each joint at rest (jointsSlide = false)
+  std::vector<BoneCarry> jointCarry;    // #joints the chain bone nearest to each joint at rest (jointsSlide = false,
+                                        // slideLimit)
   std::vector<BoneCarry> stationCarry;  // #stations the same for each rest station
-  std::vector<std::array<double, 2>> slideLimit;  // #joints MuscleRigOptions::slideLimits (0 = none)
+  std::vector<std::array<double, 2>> slideLimit;    // #joints MuscleRigOptions::slideLimits (0 = none)
+  std::vector<std::array<double, 2>> stationLimit;  // #stations the joints' limits interpolated as 1 / rho (0 = none)
   joints::BulgeProfile bulge;
   // Surface: each vertex blends stations j and j + 1 with weights (1 - alpha, alpha); local
   // coordinates in each station's rest frame.
@@ -487,6 +489,18 @@ MuscleRig::MuscleRig(const Skeleton& skeleton, const std::vector<Muscle>& muscle
       for (int side = 0; side < 2 && !options.slideLimits.empty(); ++side)
         if (std::isfinite(options.slideLimits[j][side]) && options.slideLimits[j][side] > 0)
           mr.slideLimit[k][side] = impl->slideLimits[j][side] = options.slideLimits[j][side];
+    // Stations between two joints' stations take 1 / rho interpolated linearly (0 where a joint has no limit), so the
+    // surface does not step where neighbouring joints' limits differ; beyond the end joints, theirs.
+    mr.stationLimit.assign(mr.stations, {0.0, 0.0});
+    for (int st = 0; st < mr.stations; ++st) {
+      const double t = std::clamp((double(st) / mr.jointStride - 1.0) / 2.0, 0.0, double(mr.joints - 1));
+      const int k0 = std::min(static_cast<int>(t), mr.joints - 1), k1 = std::min(k0 + 1, mr.joints - 1);
+      for (int side = 0; side < 2; ++side) {
+        auto inverse = [&](int k) { return mr.slideLimit[k][side] > 0 ? 1.0 / mr.slideLimit[k][side] : 0.0; };
+        const double kappa = (1 - (t - k0)) * inverse(k0) + (t - k0) * inverse(k1);
+        mr.stationLimit[st][side] = kappa > 0 ? 1.0 / kappa : 0.0;
+      }
+    }
   }
   impl_ = impl;
 }
@@ -587,7 +601,7 @@ void MuscleRig::evaluate(const Pose& pose, MuscleRigState& state, bool withSurfa
       for (int j = 0; j < S; ++j) P[j] = alongAsTheBone(mm.stationCarry[j], pose, P[j]);
     else
       for (int j = 0; j < S; ++j) {
-        P[j] = slideLimited(mm.stationCarry[j], pose, P[j], mm.slideLimit[std::clamp(j / (2 * mm.jointStride), 0, mm.joints - 1)]);
+        P[j] = slideLimited(mm.stationCarry[j], pose, P[j], mm.stationLimit[j]);
       }
     for (int j = 0; j < S; ++j) {
       const double s = joints::bulgeScale(mm.bulge, j, mu, lambda);

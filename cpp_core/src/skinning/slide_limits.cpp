@@ -1,6 +1,9 @@
 // Slide limits from a bound skin (skinning.h computeSlideLimits): how far each muscle joint may carry its skin
 // along the bone before the skin folds where the muscle's weight fades.
+#include <algorithm>
 #include <array>
+#include <cmath>
+#include <string>
 #include <vector>
 
 #include "myoskin/deformation.h"
@@ -54,7 +57,7 @@ std::vector<std::array<double, 2>> computeSlideLimits(const Mesh& skin, const Sk
     const Vec3 p0 = skin.vertices.row(a).transpose();
     const Vec3 e1 = skin.vertices.row(b).transpose() - p0, e2 = skin.vertices.row(c).transpose() - p0;
     const double a11 = e1.dot(e1), a12 = e1.dot(e2), a22 = e2.dot(e2), det = a11 * a22 - a12 * a12;
-    if (!(det > 1e-12 * a11 * a22)) continue;  // a degenerate triangle has no gradient
+    if (!(det > 1e-6 * a11 * a22)) continue;  // a sliver (sin^2 of its angle under 1e-6) has no gradient to trust
     int lastMuscle = -1;
     Vec3 g = Vec3::Zero();
     for (int j : touching) {  // joints of one muscle are consecutive: one gradient per muscle
