@@ -57,7 +57,7 @@ struct MuscleRigOptions {
   // limit on o's side: the same for small slides, never past rho. Skin a muscle carries with weight W slides W o
   // along the limb, so where W falls by dW over ds in the direction of the slide the skin folds once o dW / ds
   // reaches 1; computeSlideLimits (skinning.h) gives each joint the rho that keeps it below that on a bound skin.
-  // The surface's stations slide by their nearest joint's limits.
+  // The surface's stations between two joints' stations take 1 / rho interpolated between theirs.
   std::vector<std::array<double, 2>> slideLimits;
 };
 
