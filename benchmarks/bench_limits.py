@@ -61,6 +61,7 @@ def many_muscles(core, character, muscles, count):
 def run_case(name):
     import _core as core
     import numpy as np
+    import skin_quality  # beside this script
     case = CASES[name]
     t = time.perf_counter()
     character, _ = core.make_synthetic_body(seed=1, cell_size=case["cell"])
@@ -71,9 +72,7 @@ def run_case(name):
     if case["muscles"]:
         muscles = many_muscles(core, character, muscles, case["muscles"])
     t = time.perf_counter()
-    rig = core.MuscleRig(character, muscles)
-    joints, weights = core.hybrid_weights(character, rig)
-    rig = core.MuscleRig(character, muscles, slide_limits=core.slide_limits(character, rig, joints, weights))  # as Bind
+    rig, joints, weights = skin_quality.bound_rig(core, character, muscles)  # as Bind: with the slide limits
     bind = time.perf_counter() - t
     skinner = core.Skinner(character.vertices, joints, weights, character.num_bones + rig.num_joints)
     rest = np.asarray(character.bone_rest)

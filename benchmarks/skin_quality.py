@@ -176,16 +176,22 @@ def _best_time(f, repeats=5):
     return best
 
 
-def bind_skin(core, character, muscles, hybrid_options=None, share_options=None, rig_options=None, slide_limit=True):
-    """What the default Bind gives the skin, through the core: (rig (core.MuscleRig(character, muscles, **rig_options);
-    with sliding joints and `slide_limit`, as Bind, rebuilt with the slide limits core.slide_limits gives its skin
-    weights), hybrid weight joints, their values, the volume blend's shares (compute_dqs_share(character,
-    **share_options)), the volume keys fitted on that skin)."""
+def bound_rig(core, character, muscles, hybrid_options=None, rig_options=None, slide_limit=True):
+    """The rig and hybrid weights Bind (and the CLI's deform / simulate) skin with: (core.MuscleRig(character, muscles,
+    **rig_options), with sliding joints and `slide_limit` rebuilt with the slide limits core.slide_limits gives its
+    skin weights; hybrid weight joints; their values)."""
     rig = core.MuscleRig(character, muscles, **(rig_options or {}))
     hj, hw = core.hybrid_weights(character, rig, **(hybrid_options or {}))
     if slide_limit and rig.joints_slide:
-        limits = np.asarray(core.slide_limits(character, rig, hj, hw)).tolist()
+        limits = core.slide_limits(character, rig, hj, hw)
         rig = core.MuscleRig(character, muscles, **dict(rig_options or {}, slide_limits=limits))
+    return rig, hj, hw
+
+
+def bind_skin(core, character, muscles, hybrid_options=None, share_options=None, rig_options=None, slide_limit=True):
+    """What the default Bind gives the skin, through the core: (bound_rig's rig, hybrid weight joints and values, the
+    volume blend's shares (compute_dqs_share(character, **share_options)), the volume keys fitted on that skin)."""
+    rig, hj, hw = bound_rig(core, character, muscles, hybrid_options, rig_options, slide_limit)
     share = np.asarray(core.compute_dqs_share(character, **(share_options or {})))
     keys = core.compute_volume_keys(character, share, rig=rig, weight_joints=hj, weight_values=hw)
     return rig, hj, hw, share, keys

@@ -1,11 +1,16 @@
 """Secondary motion from Python and the CLI: `myoskin simulate` (jiggle, filter, sculpt, chunks stitched by
 state files), _core.simulate, JiggleTrack, temporal_filter and SculptDeltas, and their bad input."""
 import json
+import os
+import sys
 
 import numpy as np
 import pytest
 
 from conftest import run_cli
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "benchmarks"))
+import skin_quality  # noqa: E402
 
 SWING = [0, 12, 24, 36, 48, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60]
 
@@ -105,13 +110,6 @@ def test_cli_bad_input(core, arm_files):
     assert r.returncode == 1 and "--skin-solve needs --muscles" in r.stderr
 
 
-def bound_rig(core, character, muscles):
-    """The rig, hybrid weight joints and values the CLI's simulate binds with: sliding joints with their slide limits."""
-    rig = core.MuscleRig(character, muscles)
-    joints, weights = core.hybrid_weights(character, rig)
-    return core.MuscleRig(character, muscles, slide_limits=core.slide_limits(character, rig, joints, weights)), joints, weights
-
-
 def test_skin_solve_in_the_simulation_cli_and_python(core, arm_files):
     """simulate --skin-solve: rest frames stay the skin, bent frames are solved (skin outside the posed muscles
     where it was outside at rest), chunks still stitch, and Python's simulate(skin_solve=...) gives the same."""
@@ -130,7 +128,7 @@ def test_skin_solve_in_the_simulation_cli_and_python(core, arm_files):
     simulate(d, d / "s_b.pc2", "--jiggle", "--skin-solve", "--frames", "13-24", "--state-in", str(d / "ss12.json"))
     stitched = np.concatenate([core.read_pc2(str(d / n))["frames"] for n in ("s_a.pc2", "s_b.pc2")])
     assert np.array_equal(stitched, solved)
-    rig, joints, weights = bound_rig(core, character, core.read_muscles(str(d / "muscles.json")))
+    rig, joints, weights = skin_quality.bound_rig(core, character, core.read_muscles(str(d / "muscles.json")))
     skinner = core.Skinner(character.vertices, joints, weights, character.num_bones + len(rig.joint_names))
     goal_weights = core.default_goal_weights(joints, weights, character.num_bones)
     frames = core.simulate(character, skinner, swing_poses(core, character), rig, 24.0, 1, jiggle=True,
@@ -141,7 +139,7 @@ def test_skin_solve_in_the_simulation_cli_and_python(core, arm_files):
 def test_python_simulate_equals_the_cli_and_sculpt(core, arm_files):
     d = arm_files
     character = core.load_character(str(d / "arm.obj"))
-    rig, joints, weights = bound_rig(core, character, core.read_muscles(str(d / "muscles.json")))
+    rig, joints, weights = skin_quality.bound_rig(core, character, core.read_muscles(str(d / "muscles.json")))
     skinner = core.Skinner(character.vertices, joints, weights, character.num_bones + len(rig.joint_names))
     poses = swing_poses(core, character)
     frames = core.simulate(character, skinner, poses, rig, 24.0, 1, jiggle=True, filter=True)

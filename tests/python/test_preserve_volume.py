@@ -1,11 +1,16 @@
 """Preserve volume (Blender's dual quaternion skinning) from Python and the CLI: the Skinner against a numpy
 float64 reference, rest pose exact, ValueErrors, and `myoskin deform --preserve-volume` equal to the module."""
 import json
+import os
+import sys
 
 import numpy as np
 import pytest
 
 from conftest import run_cli
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "benchmarks"))
+import skin_quality  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -148,10 +153,7 @@ def test_cli_deform_preserve_volume_matches_the_module(core, tmp_path):
         frames = core.read_pc2(str(tmp_path / "out.pc2"))["frames"]
         pose = bend(core, character, 120)
         if muscles:
-            rig = core.MuscleRig(character, core.read_muscles(str(tmp_path / "m.json")))
-            joints, weights = core.hybrid_weights(character, rig)
-            rig = core.MuscleRig(character, rig.muscles,  # Bind's slide limits, from the weights
-                                 slide_limits=core.slide_limits(character, rig, joints, weights))
+            rig, joints, weights = skin_quality.bound_rig(core, character, core.read_muscles(str(tmp_path / "m.json")))
             t = core.skinning_transforms(character, pose, rig, rig.evaluate(pose)["joint_matrices"])
             rest = core.combined_rest_matrices(character, rig)
         else:

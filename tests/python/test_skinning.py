@@ -1,11 +1,16 @@
 """Skinning from Python: the Skinner against numpy, ValueErrors naming the offending index, poses, PC2,
 quality measures and the `myoskin deform` CLI."""
 import json
+import os
+import sys
 
 import numpy as np
 import pytest
 
 from conftest import run_cli
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "benchmarks"))
+import skin_quality  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -253,11 +258,8 @@ def test_cli_deform_with_muscles_matches_the_module(core, tmp_path):
     assert r.returncode == 0, r.stderr
     assert "muscle joints" in r.stdout
     frames = core.read_pc2(str(tmp_path / "out.pc2"))["frames"]
-    rig = core.MuscleRig(character, core.read_muscles(str(tmp_path / "m.json")))
-    joints, weights = core.hybrid_weights(character, rig)
-    limits = core.slide_limits(character, rig, joints, weights)  # Bind's: how far each joint may slide
-    assert (np.asarray(limits) > 0).any()
-    rig = core.MuscleRig(character, rig.muscles, slide_limits=limits)
+    rig, joints, weights = skin_quality.bound_rig(core, character, core.read_muscles(str(tmp_path / "m.json")))
+    assert (np.asarray(rig.slide_limits) > 0).any()  # Bind's: how far each joint may slide
     pose = bend(core, character, 140, axis=(1, 0, 0))
     transforms = core.skinning_transforms(character, pose, rig, rig.evaluate(pose)["joint_matrices"])
     expected = core.Skinner(character.vertices, joints, weights, transforms.shape[0]).deform(transforms)

@@ -99,9 +99,7 @@ def test_cli_deform_volume_blend_matches_the_module(core, tmp_path):
     assert "volume blend" in r.stdout
     frames = core.read_pc2(str(tmp_path / "out.pc2"))["frames"]
     pose = bend(core, character, 120)
-    rig = core.MuscleRig(character, core.read_muscles(str(tmp_path / "m.json")))
-    joints, weights = core.hybrid_weights(character, rig)
-    rig = core.MuscleRig(character, rig.muscles, slide_limits=core.slide_limits(character, rig, joints, weights))
+    rig, joints, weights = skin_quality.bound_rig(core, character, core.read_muscles(str(tmp_path / "m.json")))
     t = core.skinning_transforms(character, pose, rig, rig.evaluate(pose)["joint_matrices"])
     rest = core.combined_rest_matrices(character, rig)
     share = core.compute_dqs_share(character)

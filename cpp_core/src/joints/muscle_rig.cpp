@@ -87,6 +87,7 @@ Vec3 alongAsTheBone(const BoneCarry& c, const Pose& pose, const Vec3& p) {
 // p with its offset o along the carrying bone's posed axis from the carried rest point made rho tanh(o / rho), rho
 // the limit on o's side (rho[0] towards the bone's head, rho[1] towards its tail; 0 = none).
 Vec3 slideLimited(const BoneCarry& c, const Pose& pose, const Vec3& p, const std::array<double, 2>& rho) {
+  if (rho[0] <= 0 && rho[1] <= 0) return p;  // no limit either way: nothing to transform
   const Mat4& B = pose.matrices[c.bone];
   const Vec3 axis = (orthonormalRotationOf(B) * c.axisLocal).normalized();
   const double o = (p - transformPoint(B, c.restLocal)).dot(axis);
